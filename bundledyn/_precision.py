@@ -1,0 +1,42 @@
+"""Floating-point precision: float64 is opt-in, never switched on at import."""
+
+import warnings
+
+import jax
+import jax.numpy as jnp
+
+
+def enable_x64(enable: bool = True) -> None:
+    """Switch JAX to float64 as the default working precision.
+
+    bundledyn never flips this global flag on import; call this once, before building
+    arrays, when rounding-level accuracy is wanted (the physics tests do).
+
+    **Arguments:**
+
+    - `enable`: `True` for float64 (the default), `False` to go back to float32.
+    """
+    jax.config.update("jax_enable_x64", enable)
+
+
+def default_float():
+    """The floating dtype JAX currently creates by default (float32 or float64)."""
+    return jnp.asarray(0.0).dtype
+
+
+def warn_if_tolerance_too_tight(tolerance: float, dtype) -> None:
+    """Warn when a requested tolerance is below what `dtype` can resolve.
+
+    **Arguments:**
+
+    - `tolerance`: the relative tolerance the user asked for.
+    - `dtype`: the floating dtype the computation will run in.
+    """
+    eps = float(jnp.finfo(dtype).eps)
+    if tolerance < 100 * eps:
+        warnings.warn(
+            f"a tolerance of {tolerance:g} was asked for in {jnp.dtype(dtype).name}, whose "
+            f"rounding error is {eps:.1e}; call `bundledyn.enable_x64()` before building arrays "
+            "to compute in float64.",
+            stacklevel=3,
+        )
