@@ -1,0 +1,60 @@
+"""The abstract mechanical system: an invariant metric in a local trivialization."""
+
+import abc
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+from jaxtyping import Array, Float
+
+
+class AbstractSystem(eqx.Module):
+    """A mechanical system whose configuration space is a principal SE(3) bundle.
+
+    In a local trivialization $s = g \\cdot r(q)$ (seed 004, §2) a system is known by its
+    invariant kinetic-energy metric. With $\\xi = g^{-1}\\dot g$ the body velocity of the
+    section frame and $\\dot q$ the shape velocity,
+
+    $$T = \\tfrac12 [\\xi; \\dot q]^T G(q) [\\xi; \\dot q], \\quad
+      G = \\begin{bmatrix} I_r & B \\\\ B^T & M \\end{bmatrix}.$$
+
+    Everything else (locked inertia, connection, shape metric, curvature, the equations
+    (2.6)–(2.7)) follows from `metric`. Subclasses give `shape_dim` and `metric`; they may
+    override `metric_and_derivative` with a closed form.
+    """
+
+    @property
+    @abc.abstractmethod
+    def shape_dim(self) -> int:
+        """The number $d$ of shape coordinates $q$ (static)."""
+
+    @abc.abstractmethod
+    def metric(self, q: Float[Array, " d"]) -> Float[Array, "6+d 6+d"]:
+        """The metric $G(q)$ of the kinetic energy in the trivialization variables $(\\xi, \\dot q)$.
+
+        **Arguments:**
+
+        - `q`: shape coordinates, shape `(d,)`.
+
+        **Returns:**
+
+        $G(q)$, symmetric positive definite, shape `(6 + d, 6 + d)`.
+        """
+
+    def metric_and_derivative(self, q):
+        """$G(q)$ and its partial derivatives $\\partial G / \\partial q_k$.
+
+        **Arguments:**
+
+        - `q`: shape coordinates, shape `(d,)`.
+
+        **Returns:**
+
+        A pair `(G, dG)` with `G` of shape `(6+d, 6+d)` and `dG[..., k]` $= \\partial G/\\partial q_k$,
+        shape `(6+d, 6+d, d)`. The default is forward-mode autodiff of `metric`.
+        """
+        return self.metric(q), jax.jacfwd(self.metric)(q)
+
+    def neutral_shape(self) -> Float[Array, " d"]:
+        """A reference shape $q_0$ (zero coordinates unless a system says otherwise)."""
+        return jnp.zeros(self.shape_dim)

@@ -1,0 +1,351 @@
+"""Trees of rigid bodies with a floating base, vectorized over bodies."""
+
+import copy
+from typing import NamedTuple
+
+import equinox as eqx
+import jax.numpy as jnp
+import numpy as np
+from jaxtyping import Array, Float
+
+from .. import lie
+from ._base import AbstractSystem
+from ._joints import AbstractJoint
+from ._rigid_body import RigidBody, spatial_inertia
+from ._validation import check_shape, concrete
+
+
+class Link(eqx.Module):
+    """A body attached to its parent by a joint.
+
+    **Arguments:**
+
+    - `body`: the `RigidBody` (its frame is the child frame of the joint).
+    - `joint`: a joint (`Revolute`, `Prismatic`, `Universal`, `Spherical`, `Fixed`, `Composite`).
+    - `parent`: index of the parent body; 0 is the floating base, $i \\ge 1$ is `links[i-1]`.
+      Parents come before children.
+    - `placement`: 4×4 pose of the child frame in the parent frame when the joint is at
+      zero (MuJoCo's body `pos`/`quat`). Default: identity.
+    """
+
+    body: RigidBody
+    joint: AbstractJoint
+    parent: int = eqx.field(static=True)
+    placement: Float[Array, "4 4"]
+
+    def __init__(self, body, joint, parent, placement=None):
+        self.body = body
+        self.joint = joint
+        self.parent = int(parent)
+        self.placement = jnp.eye(4) if placement is None else jnp.asarray(placement, dtype=float)
+
+    def __check_init__(self):
+        if not isinstance(self.body, RigidBody):
+            raise ValueError(f"`Link.body` must be a RigidBody, got {type(self.body).__name__}.")
+        if not isinstance(self.joint, AbstractJoint):
+            raise ValueError(
+                f"unknown joint type {type(self.joint).__name__!r} in `Link.joint`; use "
+                "Revolute, Prismatic, Universal, Spherical, Fixed or Composite."
+            )
+        check_shape("Link.placement", self.placement, (4, 4))
+        T = concrete(self.placement)
+        if T is not None:
+            R = T[:3, :3]
+            if (
+                not np.allclose(R.T @ R, np.eye(3), atol=1e-8)
+                or np.linalg.det(R) <= 0
+                or not np.allclose(T[3], [0, 0, 0, 1], atol=1e-12)
+            ):
+                raise ValueError(f"`Link.placement` must be a rigid transform (SE(3)), got\n{T}.")
+
+
+class _Tree(NamedTuple):
+    """Hashable static tables of the tree (part of the jit cache key)."""
+
+    kinds: tuple[str, ...]
+    factor_index: tuple[int, ...]
+    q_start: tuple[int, ...]
+    node_body: tuple[int, ...]
+    node_parent: tuple[int, ...]
+    first: tuple[bool, ...]
+    body_last: tuple[int, ...]
+    path_mask: tuple[tuple[int, ...], ...]
+    shape_dim: int
+
+
+def _tree_tables(links, n_bodies):
+    """Static index tables of the tree of joint factors ("nodes").
+
+    Each body owns one node per elementary joint factor (one node if it has none); a
+    node's parent is the previous node of its body or the last node of the parent body.
+    """
+    kinds, factor_index, q_start, node_body, node_parent, first = [], [], [], [], [], []
+    screws, anchors = [], []
+    body_last = [0]
+    kinds.append("fixed"), factor_index.append(-1), q_start.append(0)
+    node_body.append(0), node_parent.append(-1), first.append(False)
+    qi = 0
+    for i, link in enumerate(links, start=1):
+        factors = link.joint.factors() or (("fixed", None),)
+        prev = body_last[link.parent]
+        for j, (kind, value) in enumerate(factors):
+            kinds.append(kind)
+            node_body.append(i)
+            node_parent.append(prev)
+            first.append(j == 0)
+            q_start.append(qi)
+            if kind == "screw":
+                factor_index.append(len(screws)), screws.append(value)
+                qi += 1
+            elif kind == "ball":
+                factor_index.append(len(anchors)), anchors.append(value)
+                qi += 3
+            else:
+                factor_index.append(-1)
+            prev = len(kinds) - 1
+        body_last.append(prev)
+    shape_dim = qi
+    n_nodes = len(kinds)
+    # Shape columns of each node and, per body, which columns move it (root-to-body path).
+    node_columns = []
+    for k in range(n_nodes):
+        width = {"screw": 1, "ball": 3}.get(kinds[k], 0)
+        node_columns.append(list(range(q_start[k], q_start[k] + width)))
+    path_mask = np.zeros((n_bodies, shape_dim))
+    for i in range(n_bodies):
+        k = body_last[i]
+        while k >= 0:
+            path_mask[i, node_columns[k]] = 1.0
+            k = node_parent[k]
+    tree = _Tree(
+        kinds=tuple(kinds),
+        factor_index=tuple(factor_index),
+        q_start=tuple(q_start),
+        node_body=tuple(node_body),
+        node_parent=tuple(node_parent),
+        first=tuple(first),
+        body_last=tuple(body_last),
+        path_mask=tuple(tuple(int(v) for v in row) for row in path_mask),
+        shape_dim=shape_dim,
+    )
+    return tree, screws, anchors
+
+
+class Multibody(AbstractSystem):
+    """A tree of rigid bodies with a floating base (seed 004, §4, systems of rigid bodies).
+
+    The section frame is the frame of body `section` (the floating base, body 0, by
+    default); shape coordinates $q$ are the joint coordinates in link order (each joint's
+    factors in order). The metric is
+    $G = \\sum_a \\hat J_a^T \\operatorname{Ad}_{r_a^{-1}}^T M_a \\operatorname{Ad}_{r_a^{-1}} \\hat J_a$
+    with $\\hat J_a = [1 \\mid Z \\odot \\text{path}_a]$, $Z_j = \\operatorname{Ad}_{r_j} S_j$ the
+    joint screws in the section frame (DESIGN §2), computed for all bodies at once.
+
+    **Arguments:**
+
+    - `base`: the floating base `RigidBody` (body 0).
+    - `links`: a sequence of `Link`, body $i$ is `links[i-1]`.
+    - `section`: the body whose frame is the section frame $r(q)$ (static; default 0).
+    - `names`: optional body names (static), e.g. from MJCF.
+    """
+
+    mass: Float[Array, " n"]
+    com: Float[Array, "n 3"]
+    inertia: Float[Array, "n 3 3"]
+    placement: Float[Array, "n 4 4"]
+    screw_axes: Float[Array, "m 6"]
+    ball_anchors: Float[Array, "k 3"]
+    parents: tuple[int, ...] = eqx.field(static=True)
+    joint_types: tuple[str, ...] = eqx.field(static=True)
+    section: int = eqx.field(static=True)
+    names: tuple[str, ...] = eqx.field(static=True)
+    _tables: _Tree = eqx.field(static=True, repr=False)
+
+    def __init__(self, base, links, *, section=0, names=None):
+        links = tuple(links)
+        for i, link in enumerate(links, start=1):
+            if not isinstance(link, Link):
+                raise ValueError(f"`links[{i - 1}]` must be a `Link`, got {type(link).__name__}.")
+            if not 0 <= link.parent < i:
+                raise ValueError(
+                    f"`links[{i - 1}].parent` is {link.parent}; it must index an earlier body "
+                    f"(0 for the base, 1..{i - 1} for earlier links)."
+                )
+        if not isinstance(base, RigidBody):
+            raise ValueError(f"`base` must be a RigidBody, got {type(base).__name__}.")
+        bodies = (base, *(link.body for link in links))
+        n = len(bodies)
+        if not 0 <= section < n:
+            raise ValueError(f"`section` must index a body in 0..{n - 1}, got {section}.")
+        tables, screws, anchors = _tree_tables(links, n)
+        self.mass = jnp.stack([b.mass for b in bodies])
+        self.com = jnp.stack([b.com for b in bodies])
+        self.inertia = jnp.stack([b.inertia for b in bodies])
+        self.placement = jnp.stack([jnp.eye(4), *(link.placement for link in links)])
+        self.screw_axes = jnp.stack(screws) if screws else jnp.zeros((0, 6))
+        self.ball_anchors = jnp.stack(anchors) if anchors else jnp.zeros((0, 3))
+        self.parents = (-1, *(link.parent for link in links))
+        self.joint_types = ("free", *(type(link.joint).__name__.lower() for link in links))
+        self.section = int(section)
+        self.names = tuple(names) if names is not None else tuple(f"body{i}" for i in range(n))
+        self._tables = tables
+        if len(self.names) != n:
+            raise ValueError(f"`names` must name all {n} bodies, got {len(self.names)}.")
+
+    # Static tables are plain tuples so the module hashes as jit's static structure.
+    @property
+    def num_bodies(self) -> int:
+        return len(self.parents)
+
+    @property
+    def shape_dim(self) -> int:
+        return self._tables.shape_dim
+
+    def bodies(self) -> tuple[RigidBody, ...]:
+        """The bodies as `RigidBody` objects (base first)."""
+        return tuple(
+            RigidBody(self.mass[i], self.com[i], self.inertia[i]) for i in range(self.num_bodies)
+        )
+
+    def with_section(self, section: int) -> "Multibody":
+        """The same tree with body `section`'s frame as the section frame (a gauge change).
+
+        **Arguments:**
+
+        - `section`: index of the body whose frame becomes the section frame $r(q)$.
+        """
+        if not 0 <= section < self.num_bodies:
+            raise ValueError(f"`section` must index a body in 0..{self.num_bodies - 1}.")
+        # `section` is static structure, which `eqx.tree_at` cannot replace.
+        other = copy.copy(self)
+        object.__setattr__(other, "section", int(section))
+        return other
+
+    def _node_transforms(self, q):
+        """Each node's factor transform $F_k$ and body-frame motion columns."""
+        t = self._tables
+        kinds = np.array(t.kinds)
+        q_start = np.array(t.q_start)
+        screw_nodes = np.flatnonzero(kinds == "screw")
+        ball_nodes = np.flatnonzero(kinds == "ball")
+        theta = q[q_start[screw_nodes]]
+        F_screw = lie.se3_exp(theta[:, None] * self.screw_axes)
+        phi = q[q_start[ball_nodes][:, None] + np.arange(3)]
+        R = lie.so3_exp(phi)
+        a = self.ball_anchors
+        p = a - jnp.einsum("kij,kj->ki", R, a)
+        F_ball = _pose(R, p)
+        Jr = lie.so3_dexp(phi)
+        S_ball = jnp.concatenate([Jr, lie.hat(a) @ Jr], axis=-2)
+        # One gather places the factors in node order; fixed nodes take the identity.
+        order = np.full(len(kinds), len(screw_nodes) + len(ball_nodes))
+        order[screw_nodes] = np.arange(len(screw_nodes))
+        order[ball_nodes] = len(screw_nodes) + np.arange(len(ball_nodes))
+        F = jnp.concatenate([F_screw, F_ball, jnp.eye(4, dtype=q.dtype)[None]])[order]
+        return F, screw_nodes, ball_nodes, S_ball
+
+    def _node_poses(self, q):
+        """Poses of all nodes in the base frame, by pointer jumping over the tree.
+
+        $\\lceil\\log_2 \\text{depth}\\rceil$ batched products instead of one per level keeps the
+        compiled graph small for deep chains.
+        """
+        t = self._tables
+        F, screw_nodes, ball_nodes, S_ball = self._node_transforms(q)
+        n_nodes = len(t.kinds)
+        first = np.array(t.first)
+        node_body = np.array(t.node_body)
+        placement_index = np.where(first, node_body, 0)  # placement[0] is the identity
+        T = self.placement[placement_index] @ F
+        sentinel = n_nodes
+        anc = np.array([a if a >= 0 else sentinel for a in t.node_parent] + [sentinel])
+        eye = jnp.eye(4, dtype=T.dtype)[None]
+        while np.any(anc[:n_nodes] != sentinel):
+            T = jnp.concatenate([T, eye])[anc[:n_nodes]] @ T
+            anc = anc[anc]
+        return T, screw_nodes, ball_nodes, S_ball
+
+    def body_poses(self, q: Float[Array, " d"]) -> Float[Array, "n 4 4"]:
+        """Forward kinematics: the pose $r_a(q)$ of every body in the section frame.
+
+        **Arguments:**
+
+        - `q`: shape coordinates, shape `(d,)`.
+
+        **Returns:**
+
+        The 4×4 poses, shape `(n, 4, 4)`, base first.
+        """
+        T = self._node_poses(q)[0][np.array(self._tables.body_last)]
+        return self._to_section(T)
+
+    def _to_section(self, T):
+        if self.section == 0:
+            return T
+        return lie.se3_inv(T[self.section]) @ T
+
+    def _shape_columns(self, q, T, screw_nodes, ball_nodes, S_ball):
+        """$Z$: every joint column as a twist in the base frame, shape (6, d)."""
+        Z_screw = jnp.einsum("mij,mj->im", lie.Ad(T[screw_nodes]), self.screw_axes)
+        Z_ball = jnp.einsum("kij,kjc->ikc", lie.Ad(T[ball_nodes]), S_ball).reshape(6, -1)
+        q_start = np.array(self._tables.q_start)
+        columns = np.concatenate(
+            [q_start[screw_nodes], (q_start[ball_nodes][:, None] + np.arange(3)).reshape(-1)]
+        ).astype(int)
+        return (
+            jnp.zeros((6, self.shape_dim), q.dtype)
+            .at[:, columns]
+            .set(jnp.concatenate([Z_screw, Z_ball], axis=1))
+        )
+
+    def velocity_jacobians(self, q):
+        """Body-velocity map of every body: $\\hat J_a$ with $\\nu_a^{\\text{sec}} = \\hat J_a[\\xi;\\dot q]$.
+
+        **Returns:**
+
+        A pair `(r, Jhat)`: poses $r_a$ in the section frame `(n, 4, 4)` and the maps from
+        $(\\xi, \\dot q)$ to each body's velocity expressed in the section frame, `(n, 6, 6+d)`.
+        The body twist is $\\nu_a = \\operatorname{Ad}_{r_a^{-1}} \\hat J_a [\\xi; \\dot q]$.
+        """
+        T, screw_nodes, ball_nodes, S_ball = self._node_poses(q)
+        T_body = T[np.array(self._tables.body_last)]
+        Z = self._shape_columns(q, T, screw_nodes, ball_nodes, S_ball)
+        mask = np.array(self._tables.path_mask).reshape(self.num_bodies, self.shape_dim)
+        if self.section != 0:
+            # Velocities relative to the section body, seen in its frame.
+            Z = lie.Ad(lie.se3_inv(T_body[self.section])) @ Z
+            mask = mask - mask[self.section]
+        r = self._to_section(T_body)
+        eye = jnp.broadcast_to(jnp.eye(6, dtype=q.dtype), (self.num_bodies, 6, 6))
+        Jhat = jnp.concatenate([eye, Z[None] * jnp.asarray(mask, q.dtype)[:, None, :]], axis=-1)
+        return r, Jhat
+
+    def metric(self, q):
+        r, Jhat = self.velocity_jacobians(q)
+        M_body = spatial_inertia(self.mass, self.com, self.inertia)
+        Ad_inv = lie.Ad(lie.se3_inv(r))
+        M_section = jnp.einsum("nji,njk,nkl->nil", Ad_inv, M_body, Ad_inv)
+        return jnp.einsum("nai,nab,nbj->ij", Jhat, M_section, Jhat)
+
+    @classmethod
+    def from_mjcf(cls, source, **kwargs) -> "Multibody":
+        """Build a tree from an MJCF file path or XML string with mujoco's own parser.
+
+        See `bundledyn._systems._mujoco.multibody_from_mjcf` (needs the `mujoco` extra).
+        """
+        from ._mujoco import multibody_from_mjcf
+
+        return multibody_from_mjcf(source, **kwargs)
+
+    @classmethod
+    def from_urdf(cls, path, **kwargs) -> "Multibody":
+        """Build a tree from a URDF file with mujoco's own parser (needs the `mujoco` extra)."""
+        from ._mujoco import multibody_from_urdf
+
+        return multibody_from_urdf(path, **kwargs)
+
+
+def _pose(R, p):
+    top = jnp.concatenate([R, p[..., None]], axis=-1)
+    bottom = jnp.broadcast_to(jnp.array([0.0, 0.0, 0.0, 1.0], dtype=R.dtype), (*R.shape[:-2], 1, 4))
+    return jnp.concatenate([top, bottom], axis=-2)

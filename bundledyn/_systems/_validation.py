@@ -1,0 +1,68 @@
+"""Construction-time checks shared by the systems: concrete values only, never tracers."""
+
+import numpy as np
+
+
+def concrete(x):
+    """The value of `x` as a NumPy array, or `None` when `x` is a tracer (inside jit/vmap/grad).
+
+    Validation runs on concrete inputs only: a module rebuilt from tracers by a JAX
+    transformation was validated when it was first built.
+    """
+    try:
+        return np.asarray(x)
+    except Exception:
+        return None
+
+
+def check_shape(name: str, value, shape: tuple[int, ...]) -> None:
+    """Raise `ValueError` naming `name` unless `value` has exactly `shape`."""
+    if tuple(np.shape(value)) != shape:
+        raise ValueError(
+            f"`{name}` must have shape {shape}, got {tuple(np.shape(value))}; pass a "
+            f"{'scalar' if shape == () else 'array of that shape'}."
+        )
+
+
+def check_mass(name: str, mass) -> None:
+    """Raise `ValueError` unless `mass` is finite and positive."""
+    m = concrete(mass)
+    if m is not None and not (np.all(np.isfinite(m)) and np.all(m > 0)):
+        raise ValueError(f"`{name}` must be finite and positive, got {m}.")
+
+
+def check_inertia(name: str, inertia) -> None:
+    """Raise `ValueError` unless `inertia` is a physical rotational inertia (3×3).
+
+    Physical means symmetric, positive definite and obeying the triangle inequality
+    of the principal moments, $I_1 + I_2 \\ge I_3$ (any ordering): the inertia of a
+    real mass distribution.
+    """
+    J = concrete(inertia)
+    if J is None:
+        return
+    scale = max(float(np.max(np.abs(J))), 1e-300)
+    if not np.allclose(J, J.T, rtol=0.0, atol=1e-9 * scale):
+        raise ValueError(f"`{name}` must be symmetric, got\n{J}.")
+    moments = np.linalg.eigvalsh(0.5 * (J + J.T))
+    if not moments[0] > 0:
+        raise ValueError(
+            f"`{name}` must be positive definite; its principal moments are {moments}."
+        )
+    if moments[0] + moments[1] < moments[2] * (1 - 1e-9):
+        raise ValueError(
+            f"`{name}` breaks the triangle inequality of principal moments "
+            f"({moments[0]:g} + {moments[1]:g} < {moments[2]:g}): no mass distribution has it."
+        )
+
+
+def check_spd(name: str, matrix) -> None:
+    """Raise `ValueError` unless `matrix` is symmetric positive definite."""
+    S = concrete(matrix)
+    if S is None:
+        return
+    scale = max(float(np.max(np.abs(S))), 1e-300)
+    if not np.allclose(S, S.T, rtol=0.0, atol=1e-9 * scale) or not (
+        np.linalg.eigvalsh(0.5 * (S + S.T))[0] > 0
+    ):
+        raise ValueError(f"`{name}` must be symmetric positive definite, got\n{S}.")

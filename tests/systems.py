@@ -1,0 +1,136 @@
+"""A registry of systems: every system kind runs the same test battery."""
+
+import functools
+import pathlib
+
+import jax.numpy as jnp
+import numpy as np
+
+import bundledyn as bd
+
+MODELS = pathlib.Path(bd.__file__).parent / "models"
+
+
+def box_body(mass, size, com=(0.0, 0.0, 0.0)):
+    """A solid box of the given mass and edge lengths, centre of mass at `com`."""
+    a, b, c = size
+    inertia = mass / 12.0 * np.diag([b * b + c * c, a * a + c * c, a * a + b * b])
+    return bd.RigidBody(mass, com, inertia)
+
+
+def asymmetric_body():
+    return bd.RigidBody(
+        2.0, [0.05, -0.02, 0.1], [[0.30, 0.01, -0.02], [0.01, 0.45, 0.03], [-0.02, 0.03, 0.6]]
+    )
+
+
+_JOINT_CYCLE = ("revolute", "universal", "spherical", "revolute", "prismatic")
+
+
+def _joint(kind, i):
+    anchor = (-0.25, 0.0, 0.0)
+    if kind == "revolute":
+        return bd.Revolute((0.0, np.cos(i), np.sin(i)), anchor)
+    if kind == "universal":
+        return bd.Universal((0.0, 0.0, 1.0), (0.0, 1.0, 0.0), anchor)
+    if kind == "spherical":
+        return bd.Spherical(anchor)
+    return bd.Prismatic((1.0, 0.2, 0.0))
+
+
+@functools.cache
+def chain(n, kinds=_JOINT_CYCLE):
+    """A free-floating chain of `n` boxes, joints cycling through `kinds`."""
+    bodies = [
+        box_body(1.0 + 0.3 * i, (0.5, 0.1 + 0.02 * i, 0.08), (0.02 * i, 0.01, 0.0))
+        for i in range(n)
+    ]
+    placement = np.eye(4)
+    placement[0, 3] = 0.5
+    links = [
+        bd.Link(bodies[i], _joint(kinds[(i - 1) % len(kinds)], i), i - 1, placement)
+        for i in range(1, n)
+    ]
+    return bd.Multibody(bodies[0], links)
+
+
+@functools.cache
+def tree4():
+    """A branching tree: base with two children, one grandchild on the first child."""
+    b = [box_body(1.0 + 0.5 * i, (0.4, 0.12, 0.1)) for i in range(4)]
+
+    def at(x, y):
+        T = np.eye(4)
+        T[:3, 3] = (x, y, 0.0)
+        return T
+
+    links = [
+        bd.Link(b[1], bd.Revolute((0, 0, 1), (-0.2, 0, 0)), 0, at(0.4, 0.1)),
+        bd.Link(b[2], bd.Spherical((-0.2, 0, 0)), 0, at(-0.4, -0.1)),
+        bd.Link(b[3], bd.Universal((0, 1, 0), (1, 0, 0), (-0.2, 0, 0)), 1, at(0.4, 0.0)),
+    ]
+    return bd.Multibody(b[0], links)
+
+
+@functools.cache
+def affine_body():
+    return bd.AffineBody(3.0, 3.0 / 5.0 * np.diag([0.5**2, 0.3**2, 0.2**2]))
+
+
+@functools.cache
+def mjcf_chain():
+    return bd.Multibody.from_mjcf(MODELS / "chain5.xml")
+
+
+def rigid_generic():
+    """The asymmetric rigid body's kinetic energy given as a user function."""
+    M = asymmetric_body().spatial_inertia()
+
+    def T(q, qdot, xi):
+        return 0.5 * xi @ M @ xi
+
+    return bd.GenericSystem(T, 0)
+
+
+SYSTEMS = {
+    "rigid_body": asymmetric_body,
+    "chain2": lambda: chain(2),
+    "chain5": lambda: chain(5),
+    "tree4": tree4,
+    "affine_body": affine_body,
+    "mjcf_chain5": mjcf_chain,
+}
+
+
+def random_shapes(system, key, n, scale=0.8):
+    """`n` random shapes in a box of half-width `scale` (well inside every chart)."""
+    import jax
+
+    return scale * jax.random.uniform(key, (n, system.shape_dim), minval=-1.0, maxval=1.0)
+
+
+def body_inertia_data(system, q):
+    """Independent mass, centre of mass and inertia about it, summed body by body.
+
+    Uses only the bodies' poses and their own inertias (no metric): for `Multibody`,
+    the bodies; for `AffineBody`, the deformed second moment.
+    """
+    if isinstance(system, bd.RigidBody):
+        return system.mass, system.com, system.inertia
+    if isinstance(system, bd.AffineBody):
+        from bundledyn._systems._affine_body import stretch
+
+        U = stretch(q)
+        S = U @ system.second_moment @ U.T
+        return system.mass, jnp.zeros(3), jnp.trace(S) * jnp.eye(3) - S
+    r = system.body_poses(q)
+    R, p = r[:, :3, :3], r[:, :3, 3]
+    c_a = p + jnp.einsum("nij,nj->ni", R, system.com)
+    m = jnp.sum(system.mass)
+    c = jnp.einsum("n,ni->i", system.mass, c_a) / m
+    d = c_a - c
+    parallel = system.mass[:, None, None] * (
+        jnp.einsum("ni,ni->n", d, d)[:, None, None] * jnp.eye(3) - jnp.einsum("ni,nj->nij", d, d)
+    )
+    inertia = jnp.sum(jnp.einsum("nij,njk,nlk->nil", R, system.inertia, R) + parallel, axis=0)
+    return m, c, inertia
