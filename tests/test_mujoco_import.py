@@ -1,0 +1,564 @@
+"""MJCF/URDF import through MuJoCo's parser, checked against MuJoCo itself.
+
+Forward kinematics against `mj_kinematics`; the metric against the kinetic energy summed
+body by body from body velocities that MuJoCo's poses give by finite differences (and
+against MuJoCo's own energy); the state converters both ways; the refusals and warnings.
+"""
+
+import pathlib
+import warnings
+from functools import partial
+from typing import NamedTuple
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+mujoco = pytest.importorskip("mujoco")
+
+import bundledyn  # noqa: E402
+from bundledyn import Multibody  # noqa: E402
+from bundledyn._systems._mujoco import (  # noqa: E402
+    _quaternion_from_rotation_vector,
+    _rotation_vector_from_quaternion,
+    mujoco_from_state,
+    multibody_from_mjcf,
+    multibody_from_urdf,
+    state_from_mujoco,
+)
+
+FREE, BALL, SLIDE, HINGE = 0, 1, 2, 3  # mjtJoint
+MODELS = pathlib.Path(bundledyn.__file__).parent / "models"
+
+# Jitted once for the whole module; the system is a pytree argument.
+to_state = jax.jit(state_from_mujoco, static_argnames=("free_root",))
+to_mujoco = jax.jit(mujoco_from_state, static_argnames=("free_root",))
+body_poses = jax.jit(lambda system, q: system.body_poses(q))
+
+
+@jax.jit
+def kinetic_energy(system, q, xi, qdot):
+    z = jnp.concatenate([xi, qdot])
+    return 0.5 * z @ system.metric(q) @ z
+
+
+class Setup(NamedTuple):
+    model: object
+    system: Multibody
+
+
+def _quiet(fn, *args):
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        return fn(*args)
+
+
+@pytest.fixture(scope="module")
+def chain():
+    path = MODELS / "chain5.xml"
+    return Setup(mujoco.MjModel.from_xml_path(str(path)), _quiet(multibody_from_mjcf, path))
+
+
+@pytest.fixture(scope="module")
+def tree():
+    path = MODELS / "tree4.xml"
+    return Setup(mujoco.MjModel.from_xml_path(str(path)), multibody_from_mjcf(str(path)))
+
+
+def _urdf_reference_model(path):
+    """MuJoCo's own compilation of the URDF, with the free root the importer documents."""
+    spec = mujoco.MjSpec.from_file(str(path))
+    spec.worldbody.first_body().add_freejoint()
+    return spec.compile()
+
+
+@pytest.fixture(scope="module")
+def arm():
+    path = MODELS / "arm.urdf"
+    return Setup(_urdf_reference_model(path), _quiet(multibody_from_urdf, path))
+
+
+# --------------------------------------------------------------------------------------
+# helpers on the MuJoCo side
+# --------------------------------------------------------------------------------------
+
+
+def random_state(model, rng, angle=np.pi):
+    """A random qpos (random unit quaternions of either sign) and qvel."""
+    qpos = model.qpos0.copy()
+    for j in range(model.njnt):
+        a, t = model.jnt_qposadr[j], int(model.jnt_type[j])
+        if t == FREE:
+            qpos[a : a + 3] = rng.normal(size=3)
+            quat = rng.normal(size=4)
+            qpos[a + 3 : a + 7] = quat / np.linalg.norm(quat)
+        elif t == BALL:
+            quat = rng.normal(size=4)
+            qpos[a : a + 4] = quat / np.linalg.norm(quat)
+        elif t == HINGE:
+            qpos[a] += rng.uniform(-angle, angle)
+        else:
+            qpos[a] += 0.2 * rng.normal()
+    return qpos, rng.normal(size=model.nv)
+
+
+def mujoco_poses(model, data, qpos):
+    """World poses of all MuJoCo bodies after `mj_kinematics`, shape (nbody, 4, 4)."""
+    data.qpos[:] = qpos
+    mujoco.mj_kinematics(model, data)
+    T = np.tile(np.eye(4), (model.nbody, 1, 1))
+    T[:, :3, :3] = data.xmat.reshape(-1, 3, 3)
+    T[:, :3, 3] = data.xpos
+    return T
+
+
+def body_ids(setup):
+    return [setup.model.body(name).id for name in setup.system.names]
+
+
+def fd_kinetic_energy(model, qpos, qvel, h=3e-4):
+    """½ Σ_a (m_a |v_c|² + ω·J_c ω) from body twists g⁻¹ġ by 4th-order central differences.
+
+    The curve is qpos(t) = mj_integratePos(qpos, qvel, t) (exact exponential steps for
+    quaternions), so ġ(0) is the velocity MuJoCo's qvel gives every body. Inertias come
+    from MuJoCo's body arrays directly.
+    """
+    data = mujoco.MjData(model)
+
+    def poses(t):
+        qp = qpos.copy()
+        mujoco.mj_integratePos(model, qp, qvel, t)
+        return mujoco_poses(model, data, qp)
+
+    G0 = poses(0.0)
+    Gdot = (-poses(2 * h) + 8 * poses(h) - 8 * poses(-h) + poses(-2 * h)) / (12 * h)
+    energy = 0.0
+    for a in range(1, model.nbody):
+        X = np.linalg.solve(G0[a], Gdot[a])  # g⁻¹ ġ
+        W = 0.5 * (X[:3, :3] - X[:3, :3].T)
+        omega = np.array([W[2, 1], W[0, 2], W[1, 0]])
+        v = X[:3, 3]
+        m, c = model.body_mass[a], model.body_ipos[a]
+        Ri = np.zeros(9)
+        mujoco.mju_quat2Mat(Ri, model.body_iquat[a])
+        Ri = Ri.reshape(3, 3)
+        Jc = Ri @ np.diag(model.body_inertia[a]) @ Ri.T
+        v_com = v + np.cross(omega, c)
+        energy += 0.5 * (m * v_com @ v_com + omega @ Jc @ omega)
+    return energy
+
+
+def mujoco_energy(model, qpos, qvel):
+    """MuJoCo's own kinetic energy ½ qvelᵀ M qvel (mjENBL_ENERGY)."""
+    data = mujoco.MjData(model)
+    model.opt.enableflags |= mujoco.mjtEnableBit.mjENBL_ENERGY
+    data.qpos[:], data.qvel[:] = qpos, qvel
+    mujoco.mj_forward(model, data)
+    return data.energy[1]
+
+
+def same_quaternions(model, qpos_a, qpos_b):
+    """Flip the quaternion blocks of qpos_b to the sign of qpos_a's."""
+    out = np.array(qpos_b, copy=True)
+    for j in range(model.njnt):
+        t, a = model.jnt_type[j], model.jnt_qposadr[j]
+        s = {
+            FREE: slice(a + 3, a + 7),
+            BALL: slice(a, a + 4),
+        }.get(int(t))
+        if s is not None and np.dot(qpos_a[s], out[s]) < 0:
+            out[s] = -out[s]
+    return out
+
+
+# --------------------------------------------------------------------------------------
+# structure
+# --------------------------------------------------------------------------------------
+
+
+def test_chain_structure(chain):
+    s = chain.system
+    assert s.names == ("torso", "upper", "fore", "wrist", "slider", "gripper")
+    assert s.parents == (-1, 0, 1, 2, 3, 4)
+    assert s.joint_types == (
+        "free",
+        "revolute",
+        "spherical",
+        "universal",
+        "prismatic",
+        "composite",
+    )
+    assert s.shape_dim == chain.model.nv - 6
+    assert np.allclose(s.mass, chain.model.body_mass[1:])
+    # The wrist's hinge axes meet at (0.01, 0.6, 0), away from both joint positions.
+    wrist = s.screw_axes[1:3]  # screws: shoulder, wrist x2, extend, twist, squeeze
+    anchor = np.array([0.01, 0.6, 0.0])
+    for S in np.asarray(wrist):
+        assert np.allclose(S[3:], np.cross(anchor, S[:3]), atol=1e-12)
+
+
+def test_tree_structure_welds_massless_frames(tree):
+    s = tree.system
+    assert "mount" not in s.names
+    assert s.names == ("pelvis", "left_thigh", "left_shin", "right_thigh", "right_shin")
+    assert s.parents == (-1, 0, 1, 0, 3)
+    assert s.joint_types == ("free", "revolute", "revolute", "spherical", "prismatic")
+
+
+def test_joint_mapping_of_two_hinges():
+    def joint_of(j2):
+        xml = f"""<mujoco><compiler angle="radian"/><worldbody><body><freejoint/>
+        <geom size="0.1" contype="0" conaffinity="0"/><body pos="0 0 -1">
+        <joint type="hinge" axis="1 0 0" pos="0 0 0.1"/>{j2}
+        <geom size="0.1" contype="0" conaffinity="0"/></body></body></worldbody></mujoco>"""
+        return multibody_from_mjcf(xml).joint_types[1]
+
+    assert joint_of('<joint type="hinge" axis="0 1 1" pos="0 0 0.1"/>') == "universal"
+    assert joint_of('<joint type="hinge" axis="0 1 0" pos="0 0 0.3"/>') == "composite"  # skew
+    assert joint_of('<joint type="hinge" axis="1 0 0" pos="0 1 0"/>') == "composite"  # parallel
+    assert joint_of('<joint type="slide" axis="0 1 0"/>') == "composite"
+    assert joint_of('<joint type="ball"/>') == "composite"
+    assert joint_of("") == "revolute"
+
+
+def test_from_mjcf_classmethod_and_xml_string(tree):
+    text = (MODELS / "tree4.xml").read_text()
+    for system in (Multibody.from_mjcf(text), Multibody.from_mjcf(MODELS / "tree4.xml")):
+        assert system.names == tree.system.names
+        for a, b in zip(jax.tree.leaves(system), jax.tree.leaves(tree.system), strict=True):
+            np.testing.assert_array_equal(a, b)
+
+
+# --------------------------------------------------------------------------------------
+# forward kinematics
+# --------------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("name", ["chain", "tree", "arm"])
+def test_forward_kinematics_matches_mujoco(name, request):
+    setup = request.getfixturevalue(name)
+    model, system = setup.model, setup.system
+    data = mujoco.MjData(model)
+    rng = np.random.default_rng(1)
+    ids = body_ids(setup)
+    for _ in range(5):
+        qpos, qvel = random_state(model, rng)
+        T_mj = mujoco_poses(model, data, qpos)[ids]
+        g, q, _, _ = to_state(system, qpos, qvel, qpos0=model.qpos0)
+        T = np.asarray(g @ body_poses(system, q))
+        np.testing.assert_allclose(T, T_mj, rtol=0, atol=1e-12)
+
+
+def test_home_pose_is_qpos0(chain):
+    """q = 0 is MuJoCo's qpos0 (joint refs included): the placements are the home pose."""
+    model, system = chain.model, chain.system
+    data = mujoco.MjData(model)
+    T_mj = mujoco_poses(model, data, model.qpos0)[body_ids(chain)]
+    g, q, _, _ = to_state(system, model.qpos0, np.zeros(model.nv), qpos0=model.qpos0)
+    assert np.all(q == 0)
+    np.testing.assert_allclose(g @ body_poses(system, q), T_mj, atol=1e-14)
+
+
+# --------------------------------------------------------------------------------------
+# the metric against the kinetic energy (the key test)
+# --------------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("name", ["chain", "tree", "arm"])
+def test_metric_is_kinetic_energy_of_mujoco_bodies(name, request):
+    """½[ξ;q̇]ᵀG(q)[ξ;q̇] = ½Σ νₐᵀMₐνₐ with νₐ = gₐ⁻¹ġₐ from MuJoCo's poses by 4th-order
+    central differences (h = 3e-4, along mj_integratePos; error ~1e-12 relative), and equals
+    MuJoCo's own energy ½ qvelᵀ M qvel to rounding."""
+    setup = request.getfixturevalue(name)
+    model, system = setup.model, setup.system
+    rng = np.random.default_rng(2)
+    for _ in range(4):
+        qpos, qvel = random_state(model, rng)
+        _, q, xi, qdot = to_state(system, qpos, qvel, qpos0=model.qpos0)
+        T = float(kinetic_energy(system, q, xi, qdot))
+        T_fd = fd_kinetic_energy(model, qpos, qvel)
+        T_mj = mujoco_energy(model, qpos, qvel)
+        assert abs(T - T_fd) <= 1e-10 * T_fd, (T, T_fd)
+        assert abs(T - T_mj) <= 1e-12 * T_mj, (T, T_mj)
+
+
+def test_section_change_keeps_state_meaning(chain):
+    """With another section body, g and ξ refer to its frame; FK and energy are unchanged."""
+    model = chain.model
+    system = _quiet(partial(multibody_from_mjcf, section="wrist"), model)
+    assert system.section == 3
+    rng = np.random.default_rng(3)
+    data = mujoco.MjData(model)
+    qpos, qvel = random_state(model, rng)
+    g, q, xi, qdot = to_state(system, qpos, qvel, qpos0=model.qpos0)
+    np.testing.assert_allclose(
+        g @ body_poses(system, q), mujoco_poses(model, data, qpos)[body_ids(chain)], atol=1e-12
+    )
+    T = float(kinetic_energy(system, q, xi, qdot))
+    T_mj = mujoco_energy(model, qpos, qvel)
+    assert abs(T - T_mj) <= 1e-12 * T_mj
+    qpos2, qvel2 = to_mujoco(system, g, q, xi, qdot, qpos0=model.qpos0)
+    np.testing.assert_allclose(same_quaternions(model, qpos, qpos2), qpos, atol=1e-12)
+    np.testing.assert_allclose(qvel2, qvel, atol=1e-12)
+
+
+# --------------------------------------------------------------------------------------
+# converters
+# --------------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("name", ["chain", "tree"])
+def test_round_trip_from_mujoco(name, request):
+    setup = request.getfixturevalue(name)
+    model, system = setup.model, setup.system
+    rng = np.random.default_rng(4)
+    for _ in range(5):
+        qpos, qvel = random_state(model, rng)
+        qpos2, qvel2 = to_mujoco(
+            system, *to_state(system, qpos, qvel, qpos0=model.qpos0), qpos0=model.qpos0
+        )
+        np.testing.assert_allclose(same_quaternions(model, qpos, qpos2), qpos, atol=1e-13)
+        np.testing.assert_allclose(qvel2, qvel, atol=1e-13)
+
+
+def test_round_trip_from_state(chain):
+    system = chain.system
+    rng = np.random.default_rng(5)
+    d = system.shape_dim
+    g = bundledyn.lie.se3_exp(rng.normal(size=6))
+    q = rng.normal(size=d)
+    # ball coordinates inside the principal ball |φ| < π
+    kinds, starts = system._tables.kinds, system._tables.q_start
+    for kind, s in zip(kinds, starts, strict=True):
+        if kind == "ball":
+            q[s : s + 3] *= 2.0 / np.linalg.norm(q[s : s + 3])
+    xi, qdot = rng.normal(size=6), rng.normal(size=d)
+    qpos0 = chain.model.qpos0
+    state2 = to_state(system, *to_mujoco(system, g, q, xi, qdot, qpos0=qpos0), qpos0=qpos0)
+    for a, b in zip((g, q, xi, qdot), state2, strict=True):
+        np.testing.assert_allclose(b, a, atol=1e-12)
+
+
+def test_converters_jit_vmap_grad(chain):
+    system, model = chain.system, chain.model
+    qpos0 = model.qpos0
+    rng = np.random.default_rng(6)
+    batch = [random_state(model, rng) for _ in range(6)]
+    qpos = np.stack([b[0] for b in batch])
+    qvel = np.stack([b[1] for b in batch])
+
+    def both_ways(qpos, qvel):
+        state = state_from_mujoco(system, qpos, qvel, qpos0=qpos0)
+        return state, mujoco_from_state(system, *state, qpos0=qpos0)
+
+    state, (_, qvel2) = jax.jit(jax.vmap(both_ways))(qpos, qvel)
+    for i in range(len(batch)):
+        ref = to_state(system, qpos[i], qvel[i], qpos0=qpos0)
+        for a, b in zip(state, ref, strict=True):
+            np.testing.assert_allclose(a[i], b, atol=1e-14)
+    np.testing.assert_allclose(qvel2, qvel, atol=1e-13)
+
+    # Derivatives are finite at the home pose (ball quaternion = identity, φ = 0), both ways.
+    @jax.jit
+    def derivatives(qpos, qvel):
+        grads = jax.grad(lambda *a: sum(jnp.sum(x) for x in both_ways(*a)[0]), (0, 1))
+        state = state_from_mujoco(system, qpos, qvel, qpos0=qpos0)
+        tangents = tuple(jnp.ones_like(x) for x in state)
+        _, jvp = jax.jvp(lambda *s: mujoco_from_state(system, *s, qpos0=qpos0), state, tangents)
+        return grads(qpos, qvel), jvp
+
+    out = derivatives(qpos0, qvel[0])
+    assert all(np.all(np.isfinite(x)) for x in jax.tree.leaves(out))
+
+
+def test_ball_coordinates_of_quaternions():
+    """φ of a quaternion: exp(φ̃) = R(quat), |φ| ≤ π, both signs, near 0 and near π, exact
+    derivatives at φ = 0."""
+    rng = np.random.default_rng(8)
+    quats = rng.normal(size=(200, 4))
+    quats[:20, 1:] *= 1e-4  # near the identity, either sign of w
+    quats[20:40, 0] *= 1e-7  # near a half turn
+    quats[40:43] = [[1, 0, 0, 0], [-1, 0, 0, 0], [0, 0, 1, 0]]
+    phi = _rotation_vector_from_quaternion(jnp.asarray(quats))
+    R = bundledyn.lie.rotation_from_quaternion(quats)
+    np.testing.assert_allclose(bundledyn.lie.so3_exp(phi), R, atol=2e-15)
+    assert np.all(np.linalg.norm(phi, axis=-1) <= np.pi + 1e-15)
+    back = np.asarray(_quaternion_from_rotation_vector(phi))
+    unit = quats / np.linalg.norm(quats, axis=-1, keepdims=True)
+    np.testing.assert_allclose(back * np.sign(np.sum(back * unit, -1))[:, None], unit, atol=1e-15)
+    J = jax.jacfwd(_rotation_vector_from_quaternion)(jnp.array([1.0, 0, 0, 0]))
+    np.testing.assert_allclose(J, np.hstack([np.zeros((3, 1)), 2 * np.eye(3)]), atol=1e-15)
+    J = jax.jacfwd(_quaternion_from_rotation_vector)(jnp.zeros(3))
+    np.testing.assert_allclose(J, np.vstack([np.zeros((1, 3)), 0.5 * np.eye(3)]), atol=1e-15)
+
+
+def test_root_without_free_joint():
+    """A root welded to the world by MuJoCo is still floated; free_root=False converts."""
+    xml = """<mujoco><compiler angle="radian"/><worldbody>
+      <body name="base" pos="0.1 0.2 0.3" quat="0.9 0.2 0.1 0"><inertial pos="0 0 0" mass="2"
+          diaginertia="0.1 0.1 0.1"/>
+        <body name="arm" pos="0 0 -0.5"><joint type="hinge" axis="0 1 0" ref="0.2"/>
+          <inertial pos="0 0 -0.2" mass="1" diaginertia="0.02 0.02 0.01"/>
+          <body name="hand" pos="0 0 -0.4"><joint type="ball"/>
+            <inertial pos="0.1 0 0" mass="0.5" diaginertia="0.01 0.008 0.005"/></body>
+        </body></body></worldbody></mujoco>"""
+    model = mujoco.MjModel.from_xml_string(xml)
+    with pytest.warns(UserWarning, match="qpos0"):
+        system = multibody_from_mjcf(xml)
+    assert system.names == ("base", "arm", "hand")
+    rng = np.random.default_rng(7)
+    data = mujoco.MjData(model)
+    qpos, qvel = random_state(model, rng)
+    T_mj = mujoco_poses(model, data, qpos)
+    g, q, xi, qdot = to_state(
+        system, qpos, qvel, qpos0=model.qpos0, free_root=False, root_pose=T_mj[1]
+    )
+    assert np.all(xi == 0)
+    np.testing.assert_allclose(g @ body_poses(system, q), T_mj[1:], atol=1e-12)
+    T = float(kinetic_energy(system, q, xi, qdot))
+    assert abs(T - mujoco_energy(model, qpos, qvel)) <= 1e-12 * T
+    qpos2, qvel2 = to_mujoco(system, g, q, xi, qdot, qpos0=model.qpos0, free_root=False)
+    np.testing.assert_allclose(same_quaternions(model, qpos, qpos2), qpos, atol=1e-13)
+    np.testing.assert_allclose(qvel2, qvel, atol=1e-13)
+
+
+def test_converter_shape_errors(tree):
+    with pytest.raises(ValueError, match="qpos"):
+        to_state(tree.system, np.zeros(13), np.zeros(12))
+    with pytest.raises(ValueError, match="free_root=False"):
+        to_state(tree.system, np.zeros(14), np.zeros(12), free_root=False)
+
+
+# --------------------------------------------------------------------------------------
+# URDF
+# --------------------------------------------------------------------------------------
+
+
+def test_urdf_structure(arm):
+    s = arm.system
+    # 'tool' is fused into 'fore' by MuJoCo (fixed joint, fusestatic).
+    assert s.names == ("base", "upper", "fore", "slider")
+    assert s.joint_types == ("free", "revolute", "revolute", "prismatic")
+    np.testing.assert_allclose(s.mass, [2.0, 1.0, 0.8, 0.1])
+    elbow = np.asarray(s.screw_axes[1, :3])
+    np.testing.assert_allclose(elbow, np.array([1.0, 0.0, 1.0]) / np.sqrt(2), atol=1e-12)
+    with pytest.warns(UserWarning, match="contacts of 1 collision geom"):
+        again = Multibody.from_urdf(MODELS / "arm.urdf")
+    assert again.names == s.names
+
+
+# --------------------------------------------------------------------------------------
+# refusals and warnings
+# --------------------------------------------------------------------------------------
+
+BODY = '<inertial pos="0 0 0" mass="1" diaginertia="0.1 0.1 0.1"/>'
+
+
+def _xml(worldbody, extra=""):
+    return f"<mujoco><worldbody>{worldbody}</worldbody>{extra}</mujoco>"
+
+
+@pytest.mark.parametrize(
+    ("xml", "match"),
+    [
+        (
+            _xml(
+                f"<body name='a'><freejoint/>{BODY}</body><body name='b'><freejoint/>{BODY}</body>"
+            ),
+            r"worldbody holds 2 bodies \('a', 'b'\).*one root body",
+        ),
+        (
+            _xml(
+                f"<body name='a'><freejoint/>{BODY}<body name='b'><freejoint/>{BODY}</body></body>"
+            ),
+            "free joint",
+        ),
+        (
+            _xml(
+                f"<body name='a'><freejoint/>{BODY}<body name='b'><joint/>{BODY}</body></body>",
+                "<equality><connect name='loop' body1='b' body2='world' anchor='0 0 0'/>"
+                "</equality>",
+            ),
+            "equality constraint.*'loop'.*Remove the <equality>",
+        ),
+        (
+            _xml(
+                f"<body name='a'><freejoint/>{BODY}<body name='b'><joint name='j'/>{BODY}"
+                "</body></body>",
+                "<tendon><fixed name='t'><joint joint='j' coef='1'/></fixed></tendon>",
+            ),
+            "tendon.*'t'",
+        ),
+        (
+            _xml(
+                f"<body name='a'><freejoint/>{BODY}<body name='dummy'><joint name='j'/>"
+                f"<body name='c'>{BODY}</body></body></body>"
+            ),
+            r"body 'dummy' carries joint\(s\) 'j' \(hinge\) but has no mass.*<inertial>",
+        ),
+        (
+            _xml(f"<body name='a'><freejoint/><body name='b'>{BODY}</body></body>"),
+            "root body 'a' has no mass",
+        ),
+        (
+            _xml(f"<body name='a'><body name='b'><joint/>{BODY}</body></body>"),
+            "root body 'a' has no mass",
+        ),
+        (
+            _xml(f"<body name='pole'><joint name='pin'/>{BODY}</body>"),
+            r"root body 'pole' is attached to the world by 'pin' \(hinge\)",
+        ),
+        (_xml("<geom size='1'/>"), "no body under the worldbody"),
+    ],
+)
+def test_unsupported_elements_raise(xml, match):
+    with pytest.raises(ValueError, match=match):
+        multibody_from_mjcf(xml)
+
+
+def test_bad_sources():
+    with pytest.raises(FileNotFoundError):
+        multibody_from_mjcf("no/such/model.xml")
+    with pytest.raises(FileNotFoundError):
+        multibody_from_urdf("no/such/robot.urdf")
+    with pytest.raises(ValueError, match="MJCF"):
+        multibody_from_mjcf(42)
+    with pytest.raises(ValueError, match="MuJoCo could not compile"):
+        multibody_from_mjcf(
+            "<mujoco><worldbody><body><joint type='nonsense'/></body></worldbody></mujoco>"
+        )
+
+
+def test_ignored_elements_warn_once():
+    xml = _xml(
+        "<geom type='plane' size='1 1 1'/>"
+        f"<body><freejoint/>{BODY}<body name='b'><joint name='j' range='-1 1' damping='0.1'"
+        f" armature='0.01' stiffness='2'/>{BODY}</body></body>",
+        "<actuator><motor joint='j'/></actuator><sensor><jointpos joint='j'/></sensor>",
+    )
+    with pytest.warns(UserWarning) as record:
+        multibody_from_mjcf(xml)
+    assert len(record) == 1
+    message = str(record[0].message)
+    for word in (
+        "contacts of 1 collision geom",
+        "1 actuator",
+        "1 sensor",
+        "limits of joint(s) 'j'",
+        "stiffness",
+        "damping",
+        "armature",
+    ):
+        assert word in message, (word, message)
+
+
+def test_clean_model_does_not_warn():
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        multibody_from_mjcf(MODELS / "tree4.xml")
+
+
+def test_refs_warn(chain):
+    with pytest.warns(UserWarning, match=r"'shoulder' \(ref 0.4\).*qpos0=model.qpos0"):
+        multibody_from_mjcf(MODELS / "chain5.xml")
