@@ -1,6 +1,35 @@
 """bundledyn: differentiable dynamics on principal SE(3) bundles (Chevallier's equations) in JAX."""
 
+import pathlib
+
 from . import lie
+from ._dynamics import (
+    BundleGeometry,
+    bundle_geometry,
+    coadjoint_term,
+    curvature_term,
+    frame_transport_term,
+    inertia_covariant_derivative,
+    kinetic_covariant_derivative,
+    levi_civita_term,
+    locked_acceleration,
+    reference_accelerations,
+    shape_acceleration,
+)
+from ._effects import (
+    AbstractEffect,
+    AbstractPotential,
+    ExternalWrench,
+    Gravity,
+    GravityGradient,
+    Kinematics,
+    ShapeDamper,
+    ShapeForce,
+    ShapePotential,
+    ShapeSpring,
+    mass_and_centre,
+)
+from ._frames import AbstractFrame, Boosted, FreeFalling, MovingFrame
 from ._geometry import (
     connection,
     curvature,
@@ -11,7 +40,13 @@ from ._geometry import (
     metric,
     shape_metric,
 )
+from ._holonomy import curvature_by_holonomy, horizontal_lift, square_loop_holonomy
 from ._precision import enable_x64
+from ._scene import Free, Prescribed, Scene
+from ._simulate import simulate
+from ._solver._lie_euler import LieEuler
+from ._solver._rkmk import RKMK4, RKMK54
+from ._state import State
 from ._systems._affine_body import AffineBody
 from ._systems._base import AbstractSystem
 from ._systems._generic import GenericSystem
@@ -26,32 +61,75 @@ from ._systems._joints import (
 )
 from ._systems._multibody import Link, Multibody
 from ._systems._rigid_body import RigidBody, spatial_inertia
+from ._trajectory import Trajectory
 
 __version__ = "0.1.0"
 
+#: Folder of the example models shipped with the package (MJCF and URDF).
+models = pathlib.Path(__file__).parent / "models"
+
 __all__ = [
+    "AbstractEffect",
+    "AbstractFrame",
     "AbstractJoint",
+    "AbstractPotential",
     "AbstractSystem",
     "AffineBody",
+    "Boosted",
+    "BundleGeometry",
     "Composite",
+    "ExternalWrench",
     "Fixed",
+    "Free",
+    "FreeFalling",
     "GenericSystem",
+    "Gravity",
+    "GravityGradient",
+    "Kinematics",
+    "LieEuler",
     "Link",
+    "MovingFrame",
     "Multibody",
+    "Prescribed",
     "Prismatic",
+    "RKMK4",
+    "RKMK54",
     "Revolute",
     "RigidBody",
+    "Scene",
+    "ShapeDamper",
+    "ShapeForce",
+    "ShapePotential",
+    "ShapeSpring",
     "Spherical",
+    "State",
+    "Trajectory",
     "Universal",
+    "bundle_geometry",
+    "coadjoint_term",
     "connection",
     "curvature",
+    "curvature_by_holonomy",
     "curvature_from_connection",
+    "curvature_term",
     "enable_x64",
+    "frame_transport_term",
+    "horizontal_lift",
+    "inertia_covariant_derivative",
+    "kinetic_covariant_derivative",
     "kinetic_energy",
+    "levi_civita_term",
     "lie",
+    "locked_acceleration",
     "locked_inertia",
     "locked_velocity",
+    "mass_and_centre",
     "metric",
+    "models",
+    "reference_accelerations",
+    "shape_acceleration",
     "shape_metric",
+    "simulate",
     "spatial_inertia",
+    "square_loop_holonomy",
 ]

@@ -1,0 +1,275 @@
+"""Effects a scene can name: gravity, gravity gradient, shape springs and dampers, forces.
+
+An effect turns the current kinematics into generalized forces in the variables
+$(\\xi, \\dot q)$: a wrench $F_b$ on the section frame (section axes, angular first) and a
+shape force $Q_H$. Conservative effects also give their potential $\\Pi(t, g, q)$, and their
+forces are $F_b = -\\partial_\\eta \\Pi(g\\exp\\hat\\eta, q)|_0$ (the seed's $\\mathcal L\\Pi$ with a sign)
+and $Q_H = -\\partial_q\\Pi$, by autodiff.
+Only the effects a scene names enter its compiled vector field.
+"""
+
+import abc
+from collections.abc import Callable
+from typing import NamedTuple
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+from jaxtyping import Array, Float
+
+from . import lie
+from ._systems._base import AbstractSystem
+
+
+class Kinematics(NamedTuple):
+    """The motion at one instant, in the Galilean frame: time, pose, shape and velocities."""
+
+    t: Float[Array, ""]
+    g: Float[Array, "4 4"]
+    q: Float[Array, " d"]
+    xi: Float[Array, "6"]
+    qdot: Float[Array, " d"]
+
+
+def mass_and_centre(I_r: Float[Array, "6 6"]):
+    """Total mass $m$ and centre of mass $c$ (section frame) read off the locked inertia.
+
+    By Lemma 1 / Theorem 2.3 (seed 004), $I_r = \\begin{bmatrix} l - m\\tilde c\\tilde c & m\\tilde c\\\\
+    m\\tilde c^T & m 1\\end{bmatrix}$ for a Galilean-invariant system.
+
+    **Returns:**
+
+    `(m, c, l)`: mass, centre of mass `(3,)` and rotational inertia about it `(3, 3)`.
+    """
+    m = jnp.trace(I_r[3:, 3:]) / 3.0
+    c_hat = I_r[:3, 3:] / m
+    c = lie.vee(0.5 * (c_hat - c_hat.T))
+    return m, c, I_r[:3, :3] + m * c_hat @ c_hat
+
+
+class AbstractEffect(eqx.Module):
+    """Something that acts on the system: it supplies generalized forces $(F_b, Q_H)$."""
+
+    @abc.abstractmethod
+    def generalized_force(self, system: AbstractSystem, kin: Kinematics):
+        """The generalized force `(F_b (6,), Q_H (d,))` at the kinematics `kin`."""
+
+    def potential(self, system: AbstractSystem, t, g, q):
+        """The potential energy, or `None` for a non-conservative effect."""
+        return None
+
+
+class AbstractPotential(AbstractEffect):
+    """A conservative effect given by its potential $\\Pi(t, g, q)$; forces by autodiff."""
+
+    @abc.abstractmethod
+    def potential(self, system: AbstractSystem, t, g, q):
+        """$\\Pi(t, g, q)$, a scalar."""
+
+    def generalized_force(self, system, kin):
+        def Pi(eta, q):
+            return self.potential(system, kin.t, kin.g @ lie.se3_exp(eta), q)
+
+        dPi_deta, dPi_dq = jax.grad(Pi, argnums=(0, 1))(jnp.zeros(6, kin.q.dtype), kin.q)
+        return -dPi_deta, -dPi_dq
+
+
+class Gravity(AbstractPotential):
+    """Uniform gravity $\\gamma = g\\,\\chi$: $\\Pi = -m_g\\,\\gamma\\cdot(p + R(c + \\delta))$ (seed 004, (3.1)).
+
+    The centre of mass $c(q)$ and mass $m$ come from the locked inertia
+    (`mass_and_centre`), so gravity needs nothing but the metric.
+
+    **Arguments:**
+
+    - `g`: magnitude of the acceleration of gravity (default 9.81).
+    - `direction`: unit vector $\\chi$ of gravity in the Galilean frame (default $-e_z$).
+    - `gravitational_mass`: $m_g$; default: the inertial mass (the equivalence principle).
+    - `centre_offset`: $\\delta$, the centre of gravity minus the centre of mass in the section
+      frame; default 0. Setting it apart breaks Theorem 3.4 (the seed's remark).
+    """
+
+    g: Float[Array, ""]
+    direction: Float[Array, "3"]
+    gravitational_mass: Float[Array, ""] | None
+    centre_offset: Float[Array, "3"] | None
+
+    def __init__(
+        self, g=9.81, direction=(0.0, 0.0, -1.0), *, gravitational_mass=None, centre_offset=None
+    ):
+        self.g = jnp.asarray(g, dtype=float)
+        direction = jnp.asarray(direction, dtype=float)
+        if direction.shape != (3,):
+            raise ValueError(
+                f"`Gravity.direction` must be a 3-vector, got shape {direction.shape}."
+            )
+        self.direction = direction / jnp.linalg.norm(direction)
+        self.gravitational_mass = (
+            None if gravitational_mass is None else jnp.asarray(gravitational_mass, dtype=float)
+        )
+        self.centre_offset = (
+            None if centre_offset is None else jnp.asarray(centre_offset, dtype=float)
+        )
+
+    def potential(self, system, t, g, q):
+        m, c, _ = mass_and_centre(system.metric(q)[:6, :6])
+        if self.gravitational_mass is not None:
+            m = self.gravitational_mass
+        if self.centre_offset is not None:
+            c = c + self.centre_offset
+        gamma = self.g * self.direction
+        return -m * gamma @ (g[:3, 3] + g[:3, :3] @ c)
+
+
+class GravityGradient(AbstractPotential):
+    """A central Newtonian field $-\\mu/|x - x_0|$ with its gravity gradient (seed 004, §3).
+
+    Each mass element's potential expanded to second order about a centre of mass
+    (MacCullagh's formula): $\\Pi = -\\tfrac{\\mu m}{\\rho} - \\tfrac{\\mu}{2\\rho^3}
+    (\\operatorname{tr} l - 3\\hat\\rho^T l\\hat\\rho)$ with $\\rho = c - x_0$ and $l$ the rotational
+    inertia about $c$. `per_body=True` sums it body by body over a `Multibody` (exact up to
+    each body's own third moments); `per_body=False` applies it once to the whole system,
+    with $m, c, l$ from the locked inertia (any system).
+
+    **Arguments:**
+
+    - `mu`: gravitational parameter $\\mu = G M$.
+    - `centre`: $x_0$, the attracting centre in the Galilean frame (default origin).
+    - `per_body`: static choice between the per-body sum and the system expansion.
+    """
+
+    mu: Float[Array, ""]
+    centre: Float[Array, "3"]
+    per_body: bool = eqx.field(static=True)
+
+    def __init__(self, mu, centre=(0.0, 0.0, 0.0), *, per_body=False):
+        self.mu = jnp.asarray(mu, dtype=float)
+        self.centre = jnp.asarray(centre, dtype=float)
+        self.per_body = bool(per_body)
+
+    def _maccullagh(self, m, c_world, l_world):
+        rho = c_world - self.centre
+        r2 = rho @ rho
+        r = jnp.sqrt(r2)
+        quad = jnp.trace(l_world) - 3.0 * rho @ l_world @ rho / r2
+        return -self.mu * m / r - 0.5 * self.mu * quad / (r2 * r)
+
+    def potential(self, system, t, g, q):
+        R, p = g[:3, :3], g[:3, 3]
+        if self.per_body:
+            poses = g @ system.body_poses(q)
+            c = poses[:, :3, 3] + jnp.einsum("nij,nj->ni", poses[:, :3, :3], system.com)
+            l = jnp.einsum("nij,njk,nlk->nil", poses[:, :3, :3], system.inertia, poses[:, :3, :3])
+            return jnp.sum(jax.vmap(self._maccullagh)(system.mass, c, l))
+        m, c, l = mass_and_centre(system.metric(q)[:6, :6])
+        return self._maccullagh(m, p + R @ c, R @ l @ R.T)
+
+
+def _shape_matrix(value, d, name):
+    K = jnp.asarray(value, dtype=float)
+    if K.ndim == 0:
+        return K * jnp.eye(d)
+    if K.shape == (d,):
+        return jnp.diag(K)
+    if K.shape == (d, d):
+        return K
+    raise ValueError(
+        f"`{name}` must be a scalar, a ({d},) vector or a ({d}, {d}) matrix, got {K.shape}."
+    )
+
+
+class ShapePotential(AbstractPotential):
+    """A potential of the shape alone, $\\Pi = V(q)$ (internal elastic energy, say).
+
+    **Arguments:**
+
+    - `fn`: `V(q) -> scalar`, a JAX function (an `equinox.Module` to carry parameters).
+    """
+
+    fn: Callable
+
+    def potential(self, system, t, g, q):
+        return self.fn(q)
+
+
+class ShapeSpring(AbstractPotential):
+    """A linear spring on the shape, $\\Pi = \\tfrac12 (q - q_0)^T K (q - q_0)$.
+
+    **Arguments:**
+
+    - `stiffness`: $K$, a scalar, a `(d,)` vector (diagonal) or a `(d, d)` matrix.
+    - `rest`: $q_0$, the rest shape (default 0).
+    """
+
+    stiffness: Array
+    rest: Array | float
+
+    def __init__(self, stiffness, rest=0.0):
+        self.stiffness = jnp.asarray(stiffness, dtype=float)
+        self.rest = jnp.asarray(rest, dtype=float)
+
+    def potential(self, system, t, g, q):
+        K = _shape_matrix(self.stiffness, q.shape[0], "ShapeSpring.stiffness")
+        dq = q - self.rest
+        return 0.5 * dq @ K @ dq
+
+
+class ShapeDamper(AbstractEffect):
+    """Linear damping of the shape velocity, $Q_H = -C\\dot q$.
+
+    **Arguments:**
+
+    - `c`: $C$, a scalar, a `(d,)` vector (diagonal) or a `(d, d)` matrix.
+    """
+
+    c: Array
+
+    def __init__(self, c):
+        self.c = jnp.asarray(c, dtype=float)
+
+    def generalized_force(self, system, kin):
+        C = _shape_matrix(self.c, kin.q.shape[0], "ShapeDamper.c")
+        return jnp.zeros(6, kin.q.dtype), -C @ kin.qdot
+
+
+class ShapeForce(AbstractEffect):
+    """A shape force given by the user, $Q_H = f(t, q, \\dot q)$ (actuators, control laws).
+
+    **Arguments:**
+
+    - `fn`: `f(t, q, qdot) -> (d,)`, a JAX function.
+    """
+
+    fn: Callable
+
+    def generalized_force(self, system, kin):
+        return jnp.zeros(6, kin.q.dtype), self.fn(kin.t, kin.q, kin.qdot)
+
+
+class ExternalWrench(AbstractEffect):
+    """An external wrench on one body, given in that body's own frame.
+
+    **Arguments:**
+
+    - `fn`: `f(t, g, q, xi, qdot) -> (6,)`, the wrench $(\\tau, f)$ on the body: torque about
+      the body's origin and force, both in the body's axes (angular first); `g` is the
+      section frame's pose in the Galilean frame.
+    - `body`: index of the body of a `Multibody` (static), or `None` for the section frame.
+    """
+
+    fn: Callable
+    body: int | None = eqx.field(static=True, default=None)
+
+    def generalized_force(self, system, kin):
+        w = self.fn(kin.t, kin.g, kin.q, kin.xi, kin.qdot)
+        if self.body is None:
+            return w, jnp.zeros_like(kin.q)
+        if not hasattr(system, "velocity_jacobians"):
+            raise ValueError(
+                f"`ExternalWrench(body={self.body})` needs a Multibody; use body=None for the "
+                "section frame."
+            )
+        r, Jhat = system.velocity_jacobians(kin.q)
+        # The body twist is Ad_{r⁻¹} Ĵ [ξ; q̇], so the wrench's virtual power gives Ĵᵀ Ad_{r⁻¹}ᵀ w.
+        generalized = Jhat[self.body].T @ lie.Ad(lie.se3_inv(r[self.body])).T @ w
+        return generalized[:6], generalized[6:]

@@ -1,0 +1,151 @@
+"""Scenes: a system, the effects acting on it, its shape mode and its frame of reference."""
+
+from collections.abc import Callable
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+
+from . import lie
+from ._dynamics import bundle_geometry, locked_acceleration, shape_acceleration
+from ._effects import AbstractEffect, Kinematics
+from ._frames import AbstractFrame
+from ._geometry import connection
+from ._systems._base import AbstractSystem
+
+
+class Free(eqx.Module):
+    """The shape moves dynamically: both equations (2.6) are integrated."""
+
+
+class Prescribed(eqx.Module):
+    """The shape follows a given motion $q(t)$ (kinematic shape control).
+
+    Only (2.7) for the locked velocity and the reconstruction $\\xi = U - A\\dot q$ are
+    integrated: the falling cat, a satellite moving its arm.
+
+    **Arguments:**
+
+    - `q_of_t`: a JAX function `t -> q (d,)`; $\\dot q$ and $\\ddot q$ come by autodiff.
+    """
+
+    q_of_t: Callable
+
+    def at(self, t):
+        """$(q, \\dot q)$ at time `t`."""
+        return jax.jvp(self.q_of_t, (t,), (jnp.ones_like(t),))
+
+
+class Scene(eqx.Module):
+    """A system, the effects acting on it, its shape mode and the frame it is seen from.
+
+    The effects, the shape mode and the frame are static structure: only what a scene
+    names is compiled into its vector field (a rigid body gets no shape block, a scene
+    without gravity no gravity code).
+
+    **Arguments:**
+
+    - `system`: any `AbstractSystem`.
+    - `effects`: a tuple of effects (`Gravity`, `ShapeSpring`, `ExternalWrench`, ...).
+    - `shape`: `Free()` (default) or `Prescribed(q_of_t)`.
+    - `frame`: `None` for the Galilean frame (default) or an `AbstractFrame`
+      (`Boosted`, `FreeFalling`, `MovingFrame`); the state is then relative to that frame.
+    """
+
+    system: AbstractSystem
+    effects: tuple[AbstractEffect, ...]
+    shape: Free | Prescribed
+    frame: AbstractFrame | None
+
+    def __init__(self, system, effects=(), shape=None, frame=None):
+        self.system = system
+        self.effects = tuple(effects)
+        self.shape = Free() if shape is None else shape
+        self.frame = frame
+
+    def __check_init__(self):
+        if not isinstance(self.system, AbstractSystem):
+            raise ValueError(f"`Scene.system` must be a system, got {type(self.system).__name__}.")
+        for e in self.effects:
+            if not isinstance(e, AbstractEffect):
+                raise ValueError(
+                    f"unknown effect {e!r} in `Scene.effects`; use Gravity, GravityGradient, "
+                    "ShapePotential, ShapeSpring, ShapeDamper, ExternalWrench or ShapeForce."
+                )
+        if not isinstance(self.shape, Free | Prescribed):
+            raise ValueError("`Scene.shape` must be `Free()` or `Prescribed(q_of_t)`.")
+        if self.frame is not None and not isinstance(self.frame, AbstractFrame):
+            raise ValueError("`Scene.frame` must be None (Galilean) or an AbstractFrame.")
+        if isinstance(self.shape, Prescribed) and self.system.shape_dim == 0:
+            raise ValueError("`Prescribed` needs a system with shape coordinates (d > 0).")
+
+    @property
+    def free_shape(self) -> bool:
+        return isinstance(self.shape, Free) and self.system.shape_dim > 0
+
+    # State layout: y = (g, x), x = [q, U, q̇] for a free shape, x = U otherwise.
+    def split(self, t, x):
+        """`(q, U, qdot)` from the flat part `x` of the integration state at time `t`."""
+        if isinstance(self.shape, Prescribed):
+            q, qdot = self.shape.at(t)
+            return q, x, qdot
+        d = self.system.shape_dim
+        return x[:d], x[d : d + 6], x[d + 6 :]
+
+    def join(self, q, U, qdot):
+        """The flat part `x` of the integration state."""
+        if self.free_shape:
+            return jnp.concatenate([q, U, qdot])
+        return U
+
+    def _frame_shift(self, t, g):
+        """$\\operatorname{Ad}_{g^{-1}}\\vartheta$, $\\operatorname{Ad}_{g^{-1}}\\dot\\vartheta$ and $M$: what the frame adds to the velocities."""
+        M, theta, theta_dot = self.frame.motion_and_velocity(t)
+        Ad_inv = lie.Ad(lie.se3_inv(g))
+        return Ad_inv @ theta, Ad_inv @ theta_dot, M
+
+    def forces(self, kin: Kinematics):
+        """Total generalized force `(F_b, Q_H)` of the scene's effects at `kin`."""
+        F = jnp.zeros(6, kin.q.dtype)
+        Q = jnp.zeros_like(kin.q)
+        for effect in self.effects:
+            dF, dQ = effect.generalized_force(self.system, kin)
+            F, Q = F + dF, Q + dQ
+        return F, Q
+
+    def vector_field(self, t, y, args=None):
+        """The vector field of (2.6)–(2.7) on the integration state `y = (g, x)`.
+
+        **Returns:**
+
+        `(gdot, xdot)` with $\\dot g = g\\hat\\xi$ (the embedding's derivative; Lie-group solvers
+        read $\\xi = (g^{-1}\\dot g)^\\vee$), and $\\dot x$ = $(\\dot q, \\dot U, \\ddot q)$ or $\\dot U$.
+        """
+        g, x = y
+        q, U, qdot = self.split(t, x)
+        geo = bundle_geometry(self.system, q)
+        if self.frame is not None:
+            shift, shift_dot, M = self._frame_shift(t, g)
+            U, g_true = U + shift, M @ g
+        else:
+            g_true = g
+        xi = U - geo.A @ qdot if self.system.shape_dim else U
+        F, Q = self.forces(Kinematics(t, g_true, q, xi, qdot))
+        Udot = locked_acceleration(geo, U, qdot, F)
+        if self.frame is not None:
+            xi = xi - shift
+            Udot = Udot + lie.bracket(xi, shift) - shift_dot
+        gdot = g @ lie.hat(xi)
+        if self.free_shape:
+            return gdot, jnp.concatenate([qdot, Udot, shape_acceleration(geo, U, qdot, F, Q)])
+        return gdot, Udot
+
+    def kinematics(self, t, y) -> Kinematics:
+        """The state at `y` as `Kinematics` in the Galilean frame (true pose and velocities)."""
+        g, x = y
+        q, U, qdot = self.split(t, x)
+        xi = U - connection(self.system, q) @ qdot if self.system.shape_dim else U
+        if self.frame is not None:
+            shift, _, M = self._frame_shift(t, g)
+            return Kinematics(t, M @ g, q, xi + shift, qdot)
+        return Kinematics(t, g, q, xi, qdot)

@@ -1,0 +1,107 @@
+"""`simulate`: integrate a scene from an initial state with diffrax."""
+
+import diffrax
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+
+from ._geometry import connection
+from ._precision import warn_if_tolerance_too_tight
+from ._scene import Prescribed, Scene
+from ._solver._rkmk import RKMK54
+from ._state import State
+from ._trajectory import Trajectory
+
+
+def initial_condition(scene: Scene, state: State, t0):
+    """The integration state `y0 = (g, x)` of `state`, with $U = \\xi + A\\dot q$ (frame shift included)."""
+    system = scene.system
+    d = system.shape_dim
+    if isinstance(scene.shape, Prescribed):
+        q, qdot = scene.shape.at(jnp.asarray(t0, dtype=state.g.dtype))
+    elif state.q.shape != (d,):
+        raise ValueError(
+            f"`state.q` and `state.qdot` must have shape ({d},) for this system, got {state.q.shape}."
+        )
+    else:
+        q, qdot = state.q, state.qdot
+    U = state.xi + connection(system, q) @ qdot if d else state.xi
+    return state.g, scene.join(q, U, qdot)
+
+
+def _is_adaptive(solver) -> bool:
+    return isinstance(solver, diffrax.AbstractAdaptiveSolver) or getattr(solver, "adaptive", False)
+
+
+def simulate(
+    scene: Scene,
+    state0: State,
+    t1,
+    *,
+    t0=0.0,
+    solver=None,
+    rtol: float = 1e-8,
+    atol: float = 1e-8,
+    dt0=None,
+    saveat: diffrax.SaveAt | None = None,
+    adjoint: diffrax.AbstractAdjoint | None = None,
+    event: diffrax.Event | None = None,
+    max_steps: int | None = 16384,
+    progress: bool = False,
+    throw: bool = True,
+) -> Trajectory:
+    """Integrate Chevallier's equations (2.6)–(2.7) of `scene` from `state0` at `t0` to `t1`.
+
+    **Arguments:**
+
+    - `scene`: the `Scene` (system, effects, shape mode, frame).
+    - `state0`: the initial `State` (for a `Prescribed` shape, q and qdot are taken from it).
+    - `t1`, `t0`: end and start times.
+    - `solver`: a Lie-group solver (`RKMK54` default, `RKMK4`, `LieEuler`) or any diffrax
+      solver, which then integrates the pose in its 4×4 embedding: its rotation drifts off
+      SO(3) by the solver's error (see `Trajectory.orthogonality_error`).
+    - `rtol`, `atol`: tolerances of the PID step-size controller (adaptive solvers).
+    - `dt0`: the initial step; required by fixed-step solvers, where it is the step.
+    - `saveat`: a `diffrax.SaveAt`; default saves at `t0` and `t1`.
+    - `adjoint`: a diffrax adjoint (default `RecursiveCheckpointAdjoint`).
+    - `event`: an optional `diffrax.Event` to stop at.
+    - `max_steps`: step budget; running out raises (or, with `throw=False`, sets `result`).
+    - `progress`: show diffrax's text progress meter.
+
+    **Returns:**
+
+    A `Trajectory`.
+    """
+    solver = RKMK54() if solver is None else solver
+    y0 = initial_condition(scene, state0, t0)
+    warn_if_tolerance_too_tight(rtol, y0[0].dtype)
+    if _is_adaptive(solver):
+        controller = diffrax.PIDController(rtol=rtol, atol=atol)
+    else:
+        if dt0 is None:
+            raise ValueError(f"{type(solver).__name__} takes fixed steps: pass `dt0`.")
+        controller = diffrax.ConstantStepSize()
+    sol = diffrax.diffeqsolve(
+        diffrax.ODETerm(scene.vector_field),
+        solver,
+        t0,
+        t1,
+        dt0,
+        y0,
+        saveat=diffrax.SaveAt(t0=True, t1=True) if saveat is None else saveat,
+        stepsize_controller=controller,
+        adjoint=diffrax.RecursiveCheckpointAdjoint() if adjoint is None else adjoint,
+        event=event,
+        max_steps=max_steps,
+        progress_meter=diffrax.TextProgressMeter() if progress else diffrax.NoProgressMeter(),
+        throw=throw,
+    )
+    g, x = sol.ys
+    q, U, qdot = jax.vmap(scene.split)(sol.ts, x)
+    xi = jax.vmap(lambda q_, U_, qd: U_ - connection(scene.system, q_) @ qd if q_.shape[0] else U_)(
+        q, U, qdot
+    )
+    return Trajectory(sol.ts, g, q, xi, qdot, U, dict(sol.stats), sol.result, scene)
+
+
+simulate = eqx.filter_jit(simulate)
