@@ -1,0 +1,340 @@
+r"""The rotation group SO(3): hat/vee, exp/log and the left-trivialized dexp.
+
+Every function accepts leading batch dimensions and keeps the input dtype. The
+trigonometric coefficients are evaluated as functions of $x = \theta^2$: a Taylor series
+for $x < 1$, the closed form on a *safe* substituted argument otherwise (the
+double-`jnp.where` trick), so values and derivatives of every order are finite and exact
+to rounding at $\theta = 0$, at tiny angles and up to $\theta = \pi$.
+"""
+
+import math
+from fractions import Fraction
+
+import jax
+import jax.numpy as jnp
+
+__all__ = [
+    "so3_hat",
+    "so3_vee",
+    "so3_exp",
+    "so3_log",
+    "so3_dexp",
+    "so3_dexp_inv",
+    "so3_left_jacobian",
+    "so3_left_jacobian_inv",
+]
+
+# Below this value of θ² the coefficients are evaluated by their Taylor series.
+_SERIES_X = 1.0
+_N_TERMS = 11
+
+
+def _bernoulli(n: int) -> Fraction:
+    """Bernoulli number B_n (B_1 = -1/2 convention, irrelevant here: only even n used)."""
+    a = [Fraction(0)] * (n + 1)
+    for m in range(n + 1):
+        a[m] = Fraction(1, m + 1)
+        for j in range(m, 0, -1):
+            a[j - 1] = j * (a[j - 1] - a[j])
+    return a[0]
+
+
+# Power-series coefficients in x = θ², lowest order first.
+# A = sinθ/θ,  B = (1 - cosθ)/θ²,  C = (θ - sinθ)/θ³,
+# D = 1/θ² - cot(θ/2)/(2θ) = Σ_{n≥1} |B_{2n}| θ^{2n-2}/(2n)!.
+_A_SERIES = tuple((-1) ** k / math.factorial(2 * k + 1) for k in range(_N_TERMS))
+_B_SERIES = tuple((-1) ** k / math.factorial(2 * k + 2) for k in range(_N_TERMS))
+_C_SERIES = tuple((-1) ** k / math.factorial(2 * k + 3) for k in range(_N_TERMS))
+_D_SERIES = tuple(
+    float(abs(_bernoulli(2 * n)) / math.factorial(2 * n)) for n in range(1, _N_TERMS + 1)
+)
+
+
+def _horner(coeffs, x):
+    out = jnp.full_like(x, coeffs[-1])
+    for c in coeffs[-2::-1]:
+        out = out * x + c
+    return out
+
+
+_SERIES = {"a": _A_SERIES, "b": _B_SERIES, "c": _C_SERIES, "d": _D_SERIES}
+
+
+def _coefficients(x, names):
+    """The coefficients `names` (from "abcd") as functions of x = θ², safe at x = 0.
+
+    One branch mask for all: Taylor series (Horner) for x < 1, closed form on a
+    substituted safe argument otherwise, so neither branch produces inf/NaN, nor do their
+    derivatives of any order.
+    """
+    small = x < _SERIES_X
+    xs = jnp.where(small, x, 0.0)
+    xl = jnp.where(small, 2.0 * _SERIES_X, x)
+    t = jnp.sqrt(xl)
+    h = 0.5 * t
+    sin_t = jnp.sin(t)
+    sin_h = jnp.sin(h)
+    closed = {
+        "a": lambda: sin_t / t,
+        "b": lambda: 2.0 * sin_h * sin_h / xl,
+        "c": lambda: (t - sin_t) / (xl * t),
+        "d": lambda: (1.0 - h * jnp.cos(h) / sin_h) / xl,
+    }
+    return tuple(jnp.where(small, _horner(_SERIES[n], xs), closed[n]()) for n in names)
+
+
+def _coef_a(x):
+    return _coefficients(x, "a")[0]
+
+
+def _coef_b(x):
+    return _coefficients(x, "b")[0]
+
+
+def _coef_c(x):
+    return _coefficients(x, "c")[0]
+
+
+def _coef_d(x):
+    return _coefficients(x, "d")[0]
+
+
+def _float(x):
+    x = jnp.asarray(x)
+    if not jnp.issubdtype(x.dtype, jnp.inexact):
+        x = x.astype(jnp.result_type(float))
+    return x
+
+
+def so3_hat(w):
+    r"""Skew-symmetric matrix of a 3-vector, $\tilde w\,x = w \times x$.
+
+    **Arguments:**
+
+    - `w`: array of shape `(..., 3)`.
+
+    **Returns:**
+
+    Array of shape `(..., 3, 3)`.
+    """
+    w = jnp.asarray(w)
+    w1, w2, w3 = w[..., 0], w[..., 1], w[..., 2]
+    z = jnp.zeros_like(w1)
+    return jnp.stack(
+        [
+            jnp.stack([z, -w3, w2], axis=-1),
+            jnp.stack([w3, z, -w1], axis=-1),
+            jnp.stack([-w2, w1, z], axis=-1),
+        ],
+        axis=-2,
+    )
+
+
+def so3_vee(W):
+    r"""Inverse of `so3_hat`: the axial vector $(W_{32}, W_{13}, W_{21})$.
+
+    Reads only those three entries; for a matrix that is not exactly skew, pass
+    $\tfrac12(W - W^T)$ to get the axial vector of its skew part.
+
+    **Arguments:**
+
+    - `W`: array of shape `(..., 3, 3)`.
+
+    **Returns:**
+
+    Array of shape `(..., 3)`.
+    """
+    W = jnp.asarray(W)
+    return jnp.stack([W[..., 2, 1], W[..., 0, 2], W[..., 1, 0]], axis=-1)
+
+
+def _sq(w):
+    return jnp.sum(w * w, axis=-1)
+
+
+def _eye_like(w):
+    return jnp.broadcast_to(jnp.eye(3, dtype=w.dtype), w.shape[:-1] + (3, 3))
+
+
+def _poly(w, c0, c1, c2):
+    """c0 I + c1 w̃ + c2 w̃² with scalar (batched) coefficients; w̃² = w wᵀ - |w|² I."""
+    e = lambda c: c[..., None, None]
+    outer = w[..., :, None] * w[..., None, :]
+    return e(c0 - c2 * _sq(w)) * _eye_like(w) + e(c1) * so3_hat(w) + e(c2) * outer
+
+
+def so3_exp(w):
+    r"""Exponential map of SO(3) (Rodrigues' formula).
+
+    $\exp(\tilde w) = 1 + \frac{\sin\theta}{\theta}\tilde w
+    + \frac{1-\cos\theta}{\theta^2}\tilde w^2$, $\theta = |w|$; the same tensor as the
+    seed's eq. (39) with $\chi = \theta$, $q = w/\theta$. Smooth everywhere.
+
+    **Arguments:**
+
+    - `w`: rotation vector, shape `(..., 3)`.
+
+    **Returns:**
+
+    Rotation matrix, shape `(..., 3, 3)`.
+    """
+    w = _float(w)
+    x = _sq(w)
+    a, b = _coefficients(x, "ab")
+    return _poly(w, jnp.ones_like(x), a, b)
+
+
+def _so3_exp_and_left_jacobian(w):
+    """(exp(w), J_l(w)) sharing the coefficient evaluation (used by se3_exp)."""
+    x = _sq(w)
+    a, b, c = _coefficients(x, "abc")
+    one = jnp.ones_like(x)
+    return _poly(w, one, a, b), _poly(w, one, b, c)
+
+
+def so3_dexp(w):
+    r"""Left-trivialized differential of `so3_exp` (the right Jacobian $J_r$).
+
+    $\exp(w)^{-1}\,\frac{d}{dt}\exp(w(t)) = (\mathrm{dexp}(w)\,\dot w)^\wedge$ with
+    $\mathrm{dexp}(w) = \sum_k (-\tilde w)^k/(k+1)!
+    = 1 - \frac{1-\cos\theta}{\theta^2}\tilde w + \frac{\theta-\sin\theta}{\theta^3}\tilde w^2$.
+    Smooth everywhere; singular (not invertible) at $\theta = 2\pi k$, $k \ge 1$.
+
+    **Arguments:**
+
+    - `w`: rotation vector, shape `(..., 3)`.
+
+    **Returns:**
+
+    Array of shape `(..., 3, 3)`.
+    """
+    w = _float(w)
+    x = _sq(w)
+    b, c = _coefficients(x, "bc")
+    return _poly(w, jnp.ones_like(x), -b, c)
+
+
+def so3_dexp_inv(w):
+    r"""Inverse of `so3_dexp` (inverse right Jacobian $J_r^{-1}$).
+
+    $\mathrm{dexp}^{-1}(w) = 1 + \tfrac12\tilde w
+    + \Big(\frac{1}{\theta^2} - \frac{1+\cos\theta}{2\theta\sin\theta}\Big)\tilde w^2$.
+    Valid for $\theta < 2\pi$ (singular at $\theta = 2\pi$); finite at $\theta = \pi$.
+
+    **Arguments:**
+
+    - `w`: rotation vector, shape `(..., 3)`.
+
+    **Returns:**
+
+    Array of shape `(..., 3, 3)`.
+    """
+    w = _float(w)
+    x = _sq(w)
+    (d,) = _coefficients(x, "d")
+    return _poly(w, jnp.ones_like(x), 0.5 * jnp.ones_like(x), d)
+
+
+def so3_left_jacobian(w):
+    r"""Right-trivialized differential of `so3_exp` (left Jacobian $J_l(w) = J_r(-w)$).
+
+    Also the matrix $V$ in $\exp(\omega, v) = (\exp\tilde\omega, V v)$ on SE(3).
+
+    **Arguments:**
+
+    - `w`: rotation vector, shape `(..., 3)`.
+
+    **Returns:**
+
+    Array of shape `(..., 3, 3)`.
+    """
+    return so3_dexp(-_float(w))
+
+
+def so3_left_jacobian_inv(w):
+    r"""Inverse of `so3_left_jacobian`, $J_l^{-1}(w) = J_r^{-1}(-w)$; valid for $\theta<2\pi$.
+
+    **Arguments:**
+
+    - `w`: rotation vector, shape `(..., 3)`.
+
+    **Returns:**
+
+    Array of shape `(..., 3, 3)`.
+    """
+    return so3_dexp_inv(-_float(w))
+
+
+# so3_log ---------------------------------------------------------------------------------
+
+_LOG_SMALL_Y = 1e-2  # series branch when (sinθ/cosθ)² < this and cosθ > 0
+_LOG_NEAR_PI_C = -0.5  # dedicated branch when cosθ < this (θ > 2π/3)
+_ATAN_SERIES = tuple((-1) ** k / (2 * k + 1) for k in range(10))
+
+
+def so3_log(R):
+    r"""Logarithm of SO(3): the rotation vector $w$ with $\exp(\tilde w) = R$, $|w| \le \pi$.
+
+    With $s = \tfrac12 (R - R^T)^\vee = \sin\theta\,n$ and $c = \tfrac12(\operatorname{tr}R-1)
+    = \cos\theta$, three branches are selected with the double-`jnp.where` trick:
+
+    - small angle ($c > 0$, $|s|^2 < 10^{-2}c^2$): $w = s\,\arctan(|s|/c)/|s|$ by its
+      Taylor series in $|s|^2/c^2$ (no square root at 0);
+    - generic: $w = s\,\operatorname{atan2}(|s|, c)/|s|$;
+    - near $\pi$ ($c < -1/2$): the axis from the symmetric part,
+      $n n^T = (\tfrac12(R+R^T) - c)/(1-c)$ (column of largest diagonal entry), its sign
+      from $n\cdot s \ge 0$, and $\theta = \operatorname{atan2}(|n\cdot s|, c)$, so the
+      result stays accurate to rounding at $\theta = \pi - 10^{-7}$.
+
+    Each branch is a smooth function of the nine entries of $R$ (so derivatives with
+    respect to $R$ are finite, also off the group, as finite differences see them); on
+    SO(3) the branches agree, so derivatives along the group are continuous, and
+    $\partial\log(R\exp\delta)/\partial\delta = $ `so3_dexp_inv` $(\log R)$ holds to rounding
+    up to $\theta = \pi$.
+
+    At exactly $\theta = \pi$ the logarithm is two-valued ($\pm\pi n$). When $R$ is exactly
+    symmetric ($s = 0$ to the last bit) this returns $\pi n$ with the sign that makes the
+    component of largest magnitude (the largest diagonal entry of $R$) positive; otherwise
+    the sign of the rounding-level skew part decides, which is the continuous choice from
+    $\theta < \pi$. Values and derivatives stay finite there.
+
+    **Arguments:**
+
+    - `R`: rotation matrix, shape `(..., 3, 3)`.
+
+    **Returns:**
+
+    Rotation vector, shape `(..., 3)`.
+    """
+    R = _float(R)
+    RT = jnp.swapaxes(R, -1, -2)
+    s = 0.5 * so3_vee(R - RT)
+    c = 0.5 * (jnp.trace(R, axis1=-2, axis2=-1) - 1.0)
+    x2 = _sq(s)
+
+    near_pi = c < _LOG_NEAR_PI_C
+    small = (~near_pi) & (c > 0.0) & (x2 < _LOG_SMALL_Y * c * c)
+
+    # small angle: atan(|s|/c)/|s| = (1/c) Σ (-y)^k/(2k+1), y = |s|²/c²
+    c_small = jnp.where(small, c, 1.0)
+    y = jnp.where(small, x2, 0.0) / (c_small * c_small)
+    f_small = _horner(_ATAN_SERIES, y) / c_small
+
+    # near π: axis from the symmetric part, nnᵀ = (sym(R) - c)/(1 - c)
+    c_pi = jnp.where(near_pi, c, -1.0)
+    M = (0.5 * (R + RT) - c_pi[..., None, None] * _eye_like(s)) / (1.0 - c_pi)[..., None, None]
+    diag = jnp.diagonal(M, axis1=-2, axis2=-1)
+    onehot = jax.nn.one_hot(jnp.argmax(diag, axis=-1), 3, dtype=M.dtype)
+    col = jnp.einsum("...ij,...j->...i", M, onehot)  # M[..., :, k], k = argmax diag
+    mkk = jnp.sum(diag * onehot, axis=-1)
+    n = col / jnp.sqrt(jnp.where(near_pi & (mkk > 0.0), mkk, 1.0))[..., None]
+    ns = jnp.sum(n * s, axis=-1)  # = sin θ up to the sign of n
+
+    # one atan2 for both: generic atan2(|s|, c), near π atan2(|n·s|, c)
+    xg = jnp.sqrt(jnp.where(near_pi | small, 1.0, x2))
+    theta = jnp.arctan2(
+        jnp.where(near_pi, jnp.abs(ns), xg), jnp.where(near_pi, c_pi, jnp.where(small, 1.0, c))
+    )
+    f = jnp.where(small, f_small, theta / xg)
+    w_pi = (jnp.where(ns < 0.0, -theta, theta))[..., None] * n
+    return jnp.where(near_pi[..., None], w_pi, f[..., None] * s)
