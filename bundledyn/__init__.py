@@ -46,6 +46,7 @@ from ._scene import Free, Prescribed, Scene
 from ._simulate import simulate
 from ._solver._lie_euler import LieEuler
 from ._solver._rkmk import RKMK4, RKMK54
+from ._solver._variational import VariationalMidpoint
 from ._state import State
 from ._systems._affine_body import AffineBody
 from ._systems._base import AbstractSystem
@@ -105,6 +106,7 @@ __all__ = [
     "State",
     "Trajectory",
     "Universal",
+    "VariationalMidpoint",
     "bundle_geometry",
     "coadjoint_term",
     "connection",

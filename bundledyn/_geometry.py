@@ -76,8 +76,8 @@ def shape_metric(system: AbstractSystem, q) -> Float[Array, "d d"]:
     return M - B.T @ _connection_from_metric(G)
 
 
-def curvature_from_connection(A: Float[Array, "6 d"], dA: Float[Array, "6 d d"]):
-    """The curvature of a connection with local form $A$ and derivative $dA[:, j, k] = \\partial_k A_j$.
+def curvature_from_connection(A: Float[Array, "6 d"], dA: Float[Array, "d 6 d"]):
+    """The curvature of a connection with local form $A$ and derivative $dA[k, :, j] = \\partial_k A_j$.
 
     $\\Omega(u, w) = dA(u, w) - [A u, A w]$ with $dA(u,w) = (\\partial_u A) w - (\\partial_w A) u$;
     with this sign a small horizontal loop of area $\\varepsilon^2$ traversed first along
@@ -87,9 +87,9 @@ def curvature_from_connection(A: Float[Array, "6 d"], dA: Float[Array, "6 d d"])
 
     $\\Omega$, shape `(6, d, d)`, antisymmetric in the last two indices.
     """
-    d_antisym = jnp.swapaxes(dA, -1, -2) - dA
-    bracket = jax.vmap(jax.vmap(lie.bracket, (None, 1), 1), (1, None), 1)(A, A)
-    return d_antisym - bracket
+    T = jnp.moveaxis(dA, 1, 0)  # T[:, j, k] = ∂_j A_k
+    brackets = jnp.moveaxis(lie.bracket(A.T[:, None, :], A.T[None, :, :]), -1, 0)
+    return T - jnp.swapaxes(T, 1, 2) - brackets
 
 
 def curvature(system: AbstractSystem, q) -> Float[Array, "6 d d"]:
@@ -108,7 +108,7 @@ def curvature(system: AbstractSystem, q) -> Float[Array, "6 d d"]:
         return A, A
 
     dA, A = jax.jacfwd(connection_twice, has_aux=True)(q)
-    return curvature_from_connection(A, dA)
+    return curvature_from_connection(A, jnp.moveaxis(dA, -1, 0))
 
 
 def kinetic_energy(system: AbstractSystem, q, xi, qdot) -> Float[Array, ""]:

@@ -2,9 +2,11 @@
 
 from collections.abc import Callable
 
+import diffrax
 import equinox as eqx
 import jax
 import jax.numpy as jnp
+import jax.tree_util as jtu
 
 from . import lie
 from ._dynamics import bundle_geometry, locked_acceleration, shape_acceleration
@@ -149,3 +151,26 @@ class Scene(eqx.Module):
             shift, _, M = self._frame_shift(t, g)
             return Kinematics(t, M @ g, q, xi + shift, qdot)
         return Kinematics(t, g, q, xi, qdot)
+
+
+class SceneTerm(diffrax.AbstractTerm):
+    """The diffrax term of a scene: its vector field, with the scene itself at hand.
+
+    Behaves as `diffrax.ODETerm(scene.vector_field)`; solvers that need more than the
+    vector field (the variational integrator needs the metric and the forces) read `scene`.
+
+    **Arguments:**
+
+    - `scene`: the `Scene`.
+    """
+
+    scene: Scene
+
+    def vf(self, t, y, args):
+        return self.scene.vector_field(t, y, args)
+
+    def contr(self, t0, t1, **kwargs):
+        return t1 - t0
+
+    def prod(self, vf, control):
+        return jtu.tree_map(lambda v: control * v, vf)

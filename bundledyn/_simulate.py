@@ -7,7 +7,7 @@ import jax.numpy as jnp
 
 from ._geometry import connection
 from ._precision import warn_if_tolerance_too_tight
-from ._scene import Prescribed, Scene
+from ._scene import Prescribed, Scene, SceneTerm
 from ._solver._rkmk import RKMK54
 from ._state import State
 from ._trajectory import Trajectory
@@ -82,7 +82,7 @@ def simulate(
             raise ValueError(f"{type(solver).__name__} takes fixed steps: pass `dt0`.")
         controller = diffrax.ConstantStepSize()
     sol = diffrax.diffeqsolve(
-        diffrax.ODETerm(scene.vector_field),
+        SceneTerm(scene),
         solver,
         t0,
         t1,

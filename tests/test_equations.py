@@ -41,7 +41,7 @@ def compare_forms(name):
         if system.shape_dim:
             qddot = bd.shape_acceleration(geo, U, qdot, F, Q)
             # ξ = U − A q̇  ⇒  ξ̇ = U̇ − (∂_q̇ A) q̇ − A q̈
-            xidot = Udot - jnp.einsum("ajk,j,k->a", geo.dA, qdot, qdot) - geo.A @ qddot
+            xidot = Udot - jnp.tensordot(qdot, geo.dA, 1) @ qdot - geo.A @ qddot
         else:
             qddot, xidot = qdot, Udot
         xidot_ref, qddot_ref = bd.reference_accelerations(system, q, xi, qdot, F, Q)

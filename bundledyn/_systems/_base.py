@@ -50,10 +50,11 @@ class AbstractSystem(eqx.Module):
 
         **Returns:**
 
-        A pair `(G, dG)` with `G` of shape `(6+d, 6+d)` and `dG[..., k]` $= \\partial G/\\partial q_k$,
-        shape `(6+d, 6+d, d)`. The default is forward-mode autodiff of `metric`.
+        A pair `(G, dG)` with `G` of shape `(6+d, 6+d)` and `dG[k]` $= \\partial G/\\partial q_k$,
+        shape `(d, 6+d, 6+d)` (derivative index first, so that contractions are batched
+        matrix products). The default is forward-mode autodiff of `metric`.
         """
-        return self.metric(q), jax.jacfwd(self.metric)(q)
+        return self.metric(q), jnp.moveaxis(jax.jacfwd(self.metric)(q), -1, 0)
 
     def neutral_shape(self) -> Float[Array, " d"]:
         """A reference shape $q_0$ (zero coordinates unless a system says otherwise)."""

@@ -229,11 +229,11 @@ class Multibody(AbstractSystem):
         screw_nodes = np.flatnonzero(kinds == "screw")
         ball_nodes = np.flatnonzero(kinds == "ball")
         theta = q[q_start[screw_nodes]]
-        F_screw = lie.se3_exp(theta[:, None] * self.screw_axes)
+        F_screw = _unit_screw_exp(self.screw_axes, theta)
         phi = q[q_start[ball_nodes][:, None] + np.arange(3)]
         R = lie.so3_exp(phi)
         a = self.ball_anchors
-        p = a - jnp.einsum("kij,kj->ki", R, a)
+        p = a - (R @ a[..., None])[..., 0]
         F_ball = _pose(R, p)
         Jr = lie.so3_dexp(phi)
         S_ball = jnp.concatenate([Jr, lie.hat(a) @ Jr], axis=-2)
@@ -286,8 +286,8 @@ class Multibody(AbstractSystem):
 
     def _shape_columns(self, q, T, screw_nodes, ball_nodes, S_ball):
         """$Z$: every joint column as a twist in the base frame, shape (6, d)."""
-        Z_screw = jnp.einsum("mij,mj->im", lie.Ad(T[screw_nodes]), self.screw_axes)
-        Z_ball = jnp.einsum("kij,kjc->ikc", lie.Ad(T[ball_nodes]), S_ball).reshape(6, -1)
+        Z_screw = (lie.Ad(T[screw_nodes]) @ self.screw_axes[..., None])[..., 0].T
+        Z_ball = jnp.moveaxis(lie.Ad(T[ball_nodes]) @ S_ball, 0, 1).reshape(6, -1)
         q_start = np.array(self._tables.q_start)
         columns = np.concatenate(
             [q_start[screw_nodes], (q_start[ball_nodes][:, None] + np.arange(3)).reshape(-1)]
@@ -324,8 +324,10 @@ class Multibody(AbstractSystem):
         r, Jhat = self.velocity_jacobians(q)
         M_body = spatial_inertia(self.mass, self.com, self.inertia)
         Ad_inv = lie.Ad(lie.se3_inv(r))
-        M_section = jnp.einsum("nji,njk,nkl->nil", Ad_inv, M_body, Ad_inv)
-        return jnp.einsum("nai,nab,nbj->ij", Jhat, M_section, Jhat)
+        M_section = jnp.swapaxes(Ad_inv, 1, 2) @ M_body @ Ad_inv
+        # Σ_a Ĵ_aᵀ M_a Ĵ_a as one matrix product over the stacked rows of all bodies.
+        rows = Jhat.reshape(-1, Jhat.shape[-1])
+        return rows.T @ (M_section @ Jhat).reshape(rows.shape)
 
     @classmethod
     def from_mjcf(cls, source, **kwargs) -> "Multibody":
@@ -343,6 +345,23 @@ class Multibody(AbstractSystem):
         from ._mujoco import multibody_from_urdf
 
         return multibody_from_urdf(path, **kwargs)
+
+
+def _unit_screw_exp(S, theta):
+    """$\exp(\theta\hat S)$ for screws whose axis $\omega$ is a unit vector or zero.
+
+    Rodrigues' formula with $|\omega| \in \{0, 1\}$ has no singular point, so joint screws
+    need none of the Taylor branches of the general `lie.se3_exp`:
+    $R = 1 + \sin\theta\,\tilde\omega + (1-\cos\theta)\tilde\omega^2$,
+    $p = (\theta + (1-\cos\theta)\tilde\omega + (\theta-\sin\theta)\tilde\omega^2)\,v$.
+    """
+    w_hat = lie.hat(S[..., :3])
+    w_hat2 = w_hat @ w_hat
+    s, c = jnp.sin(theta)[..., None, None], (1.0 - jnp.cos(theta))[..., None, None]
+    eye = jnp.eye(3, dtype=S.dtype)
+    R = eye + s * w_hat + c * w_hat2
+    V = theta[..., None, None] * eye + c * w_hat + (theta[..., None, None] - s) * w_hat2
+    return _pose(R, (V @ S[..., 3:, None])[..., 0])
 
 
 def _pose(R, p):

@@ -1,0 +1,145 @@
+r"""Butcher tableaus for the explicit Runge–Kutta–Munthe-Kaas solvers, with dense output.
+
+A tableau here is the classical one: RKMK applies it unchanged to the ODE for the algebra
+increment $\Omega$ (and to the Euclidean rest of the state), so any classical order-$p$
+tableau gives an order-$p$ Lie-group method (Munthe-Kaas 1999). Each tableau also carries a
+*continuous extension* $b_i(\theta) = \sum_{m\ge1} B_{m-1,i}\,\theta^m$ of its weights,
+which the solvers use for dense output in the same chart.
+"""
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+__all__ = ["LieButcherTableau", "euler_tableau", "rk4_tableau", "dopri5_tableau"]
+
+
+@dataclass(frozen=True)
+class LieButcherTableau:
+    r"""An explicit Butcher tableau with an optional embedded pair and a dense output.
+
+    Not a pytree: a static description, used as a class-level attribute of a solver.
+
+    **Arguments:**
+
+    - `a_lower`: rows $2..s$ of the strictly lower triangle, as a tuple of 1-D arrays of
+        lengths $1, \dots, s-1$.
+    - `b_sol`: weights of the propagated solution, shape `(s,)`.
+    - `c`: nodes $c_2, \dots, c_s$, shape `(s-1,)` ($c_1 = 0$).
+    - `dense`: coefficients $B$ of the continuous extension, shape `(degree, s)`:
+        $b_i(\theta) = \sum_{m=1}^{\mathrm{degree}} B_{m-1,i}\,\theta^m$, with
+        $b_i(1) = $ `b_sol[i]`.
+    - `b_error`: optional, shape `(s,)`: weights $b_i - \hat b_i$ of the error estimate
+        (the difference between the propagated and the embedded solution, as in
+        `diffrax.ButcherTableau`); `None` for a method without an error estimate.
+
+    Derived: `num_stages`, `fsal` (the last stage is evaluated at the propagated
+    solution: $a_{s,j} = b_j$, $b_s = 0$, $c_s = 1$), the full `(s, s)` matrix `a` and
+    the full node vector `c_full`.
+    """
+
+    a_lower: tuple[np.ndarray, ...]
+    b_sol: np.ndarray
+    c: np.ndarray
+    dense: np.ndarray
+    b_error: np.ndarray | None = None
+
+    num_stages: int = field(init=False)
+    fsal: bool = field(init=False)
+    a: np.ndarray = field(init=False)
+    c_full: np.ndarray = field(init=False)
+
+    def __post_init__(self):
+        s = self.b_sol.shape[0]
+        assert self.b_sol.ndim == 1
+        assert self.c.shape == (s - 1,)
+        assert len(self.a_lower) == s - 1
+        a = np.zeros((s, s))
+        for i, row in enumerate(self.a_lower):
+            assert row.shape == (i + 1,)
+            assert np.allclose(row.sum(), self.c[i])
+            a[i + 1, : i + 1] = row
+        assert np.allclose(self.b_sol.sum(), 1.0)
+        assert self.dense.ndim == 2 and self.dense.shape[1] == s
+        assert np.allclose(self.dense.sum(axis=0), self.b_sol)
+        if self.b_error is not None:
+            assert self.b_error.shape == (s,)
+            assert np.allclose(self.b_error.sum(), 0.0)
+        fsal = (
+            s > 1
+            and self.b_sol[-1] == 0
+            and bool(np.all(self.a_lower[-1] == self.b_sol[:-1]))
+            and self.c[-1] == 1
+        )
+        object.__setattr__(self, "num_stages", s)
+        object.__setattr__(self, "fsal", fsal)
+        object.__setattr__(self, "a", a)
+        object.__setattr__(self, "c_full", np.concatenate([np.zeros(1), self.c]))
+
+
+# Lie–Euler: one stage, linear (geodesic) dense output.
+euler_tableau = LieButcherTableau(
+    a_lower=(),
+    b_sol=np.array([1.0]),
+    c=np.zeros(0),
+    dense=np.array([[1.0]]),
+)
+
+# Classical RK4 with its free third-order continuous extension (Hairer–Nørsett–Wanner,
+# Solving ODEs I, §II.6): b1 = θ - 3θ²/2 + 2θ³/3, b2 = b3 = θ² - 2θ³/3, b4 = -θ²/2 + 2θ³/3.
+rk4_tableau = LieButcherTableau(
+    a_lower=(np.array([0.5]), np.array([0.0, 0.5]), np.array([0.0, 0.0, 1.0])),
+    b_sol=np.array([1 / 6, 1 / 3, 1 / 3, 1 / 6]),
+    c=np.array([0.5, 0.5, 1.0]),
+    dense=np.array(
+        [
+            [1.0, 0.0, 0.0, 0.0],
+            [-1.5, 1.0, 1.0, -0.5],
+            [2 / 3, -2 / 3, -2 / 3, 2 / 3],
+        ]
+    ),
+)
+
+
+def _dopri5():
+    a_lower = (
+        np.array([1 / 5]),
+        np.array([3 / 40, 9 / 40]),
+        np.array([44 / 45, -56 / 15, 32 / 9]),
+        np.array([19372 / 6561, -25360 / 2187, 64448 / 6561, -212 / 729]),
+        np.array([9017 / 3168, -355 / 33, 46732 / 5247, 49 / 176, -5103 / 18656]),
+        np.array([35 / 384, 0, 500 / 1113, 125 / 192, -2187 / 6784, 11 / 84]),
+    )
+    b_sol = np.array([35 / 384, 0, 500 / 1113, 125 / 192, -2187 / 6784, 11 / 84, 0])
+    # Embedded fourth-order weights as in `diffrax.Dopri5` (Shampine 1986).
+    b_hat = np.array(
+        [1951 / 21600, 0, 22642 / 50085, 451 / 720, -12231 / 42400, 649 / 6300, 1 / 60]
+    )
+    c = np.array([1 / 5, 3 / 10, 4 / 5, 8 / 9, 1.0, 1.0])
+    # Shampine's (1986) midpoint weights: y(1/2) ≈ y0 + Σ c_mid_i k_i. With y0 = 0 (the
+    # chart is centred at the step's start), f0 = k_1, f1 = k_7 (FSAL) and y1 = Σ b_i k_i,
+    # the quartic through y0, y1, ymid with slopes f0, f1 (the interpolant of
+    # `diffrax.Dopri5`) is linear in the stages: p(θ) = Σ_m θ^m B_{m-1} k.
+    c_mid = 0.5 * np.array(
+        [
+            6025192743 / 30085553152,
+            0,
+            51252292925 / 65400821598,
+            -2691868925 / 45128329728,
+            187940372067 / 1594534317056,
+            -1776094331 / 19743644256,
+            11237099 / 235043384,
+        ]
+    )
+    f0 = np.eye(7)[0]
+    f1 = np.eye(7)[-1]
+    quartic = 2 * (f1 - f0) - 8 * b_sol + 16 * c_mid
+    cubic = 5 * f0 - 3 * f1 + 14 * b_sol - 32 * c_mid
+    quadratic = f1 - 4 * f0 - 5 * b_sol + 16 * c_mid
+    dense = np.stack([f0, quadratic, cubic, quartic])
+    return LieButcherTableau(a_lower=a_lower, b_sol=b_sol, c=c, dense=dense, b_error=b_sol - b_hat)
+
+
+# Dormand–Prince 5(4) (Dormand & Prince 1980; Shampine 1986), the tableau of
+# `diffrax.Dopri5`, with its fourth-order dense output.
+dopri5_tableau = _dopri5()
