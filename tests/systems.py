@@ -54,6 +54,16 @@ def chain(n, kinds=_JOINT_CYCLE):
     return bd.Multibody(bodies[0], links)
 
 
+def chain3_state():
+    """A generic moving state of `chain(3)`."""
+    return bd.State(
+        jnp.eye(4),
+        jnp.array([0.2, -0.1, 0.3]),
+        jnp.array([0.3, 0.2, -0.4, 0.1, 0.0, 0.2]),
+        jnp.array([0.5, -0.4, 0.3]),
+    )
+
+
 @functools.cache
 def tree4():
     """A branching tree: base with two children, one grandchild on the first child."""

@@ -348,7 +348,7 @@ class Multibody(AbstractSystem):
 
 
 def _unit_screw_exp(S, theta):
-    """$\exp(\theta\hat S)$ for screws whose axis $\omega$ is a unit vector or zero.
+    r"""$\exp(\theta\hat S)$ for screws whose axis $\omega$ is a unit vector or zero.
 
     Rodrigues' formula with $|\omega| \in \{0, 1\}$ has no singular point, so joint screws
     need none of the Taylor branches of the general `lie.se3_exp`:

@@ -1,0 +1,80 @@
+"""Effects (issue: dynamics): generalized forces checked against independent computations."""
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+from systems import chain
+
+import bundledyn as bd
+from bundledyn import lie
+
+SYSTEM = chain(3)
+D = SYSTEM.shape_dim
+KIN = bd.Kinematics(
+    jnp.asarray(0.7),
+    lie.se3_exp(jnp.array([0.2, -0.4, 0.3, 1.0, 0.5, -0.2])),
+    jnp.array([0.3, -0.2, 0.4]),
+    jnp.array([0.5, -0.1, 0.2, 0.3, 0.0, -0.4]),
+    jnp.array([0.6, -0.3, 0.2]),
+)
+
+
+def _body_twist_fd(body, h=1e-4):
+    """Body twist of one body along the motion, by 4th-order differences of its pose."""
+
+    def pose(t):
+        return lie.se3_exp(t * KIN.xi) @ SYSTEM.body_poses(KIN.q + t * KIN.qdot)[body]
+
+    dT = (8 * (pose(h) - pose(-h)) - (pose(2 * h) - pose(-2 * h))) / (12 * h)
+    return lie.vee(lie.se3_inv(pose(0.0)) @ dT)
+
+
+@pytest.mark.parametrize("body", [0, 2])
+def test_external_wrench_does_the_right_virtual_work(body):
+    """Generalized force · [ξ; q̇] equals the wrench · the body's own twist (finite differences)."""
+
+    def fn(t, g, q, xi, qdot):  # time- and state-dependent
+        return jnp.array([0.3, -0.2, 0.5, 1.0, 2.0, -1.5]) * (1.0 + t) + 0.1 * xi
+
+    F, Q = bd.ExternalWrench(fn, body=body).generalized_force(SYSTEM, KIN)
+    power = F @ KIN.xi + Q @ KIN.qdot
+    w = fn(KIN.t, KIN.g, KIN.q, KIN.xi, KIN.qdot)
+    np.testing.assert_allclose(power, w @ _body_twist_fd(body), rtol=1e-9)
+    if body == 0:  # the base is the section frame: no shape force
+        np.testing.assert_allclose(Q, 0.0, atol=1e-14)
+
+
+def test_shape_potentials_springs_dampers_and_forces():
+    K = jnp.array([[2.0, 0.3, 0.0], [0.3, 1.0, 0.1], [0.0, 0.1, 3.0]])
+    rest = jnp.array([0.1, 0.0, -0.2])
+    spring = bd.ShapeSpring(K, rest).generalized_force(SYSTEM, KIN)
+    potential = bd.ShapePotential(lambda q: 0.5 * (q - rest) @ K @ (q - rest))
+    np.testing.assert_allclose(potential.generalized_force(SYSTEM, KIN)[1], -K @ (KIN.q - rest))
+    np.testing.assert_allclose(spring[1], -K @ (KIN.q - rest), rtol=1e-14)
+    np.testing.assert_allclose(spring[0], 0.0)
+    _, Q_damper = bd.ShapeDamper(jnp.array([1.0, 2.0, 3.0])).generalized_force(SYSTEM, KIN)
+    np.testing.assert_allclose(Q_damper, -jnp.array([1.0, 2.0, 3.0]) * KIN.qdot)
+    _, Q_force = bd.ShapeForce(lambda t, q, qdot: t * q + qdot).generalized_force(SYSTEM, KIN)
+    np.testing.assert_allclose(Q_force, KIN.t * KIN.q + KIN.qdot)
+    with pytest.raises(ValueError, match="stiffness"):
+        bd.ShapeSpring(jnp.ones(2)).potential(SYSTEM, 0.0, KIN.g, KIN.q)
+
+
+def test_gravity_does_the_work_of_its_potential():
+    """Gravity's generalized force is minus the rate of change of m γ·c along the motion."""
+    gravity = bd.Gravity(9.81, [0.3, -0.2, -1.0])
+    F, Q = gravity.generalized_force(SYSTEM, KIN)
+
+    def potential(t):
+        g = KIN.g @ lie.se3_exp(t * KIN.xi)
+        return gravity.potential(SYSTEM, 0.0, g, KIN.q + t * KIN.qdot)
+
+    rate = jax.jvp(potential, (0.0,), (1.0,))[1]
+    np.testing.assert_allclose(F @ KIN.xi + Q @ KIN.qdot, -rate, rtol=1e-12)
+    # Independently, mγ·(world centre of mass) from the body poses.
+    poses = KIN.g @ SYSTEM.body_poses(KIN.q)
+    centres = poses[:, :3, 3] + jnp.einsum("nij,nj->ni", poses[:, :3, :3], SYSTEM.com)
+    gamma = 9.81 * gravity.direction
+    expected = -SYSTEM.mass @ (centres @ gamma)
+    np.testing.assert_allclose(potential(0.0), expected, rtol=1e-12)
