@@ -43,7 +43,7 @@ from ._geometry import (
 from ._holonomy import curvature_by_holonomy, horizontal_lift, square_loop_holonomy
 from ._precision import enable_x64
 from ._scene import Free, Prescribed, Scene
-from ._simulate import simulate
+from ._simulate import project_to_se3, simulate
 from ._solver._lie_euler import LieEuler
 from ._solver._rkmk import RKMK4, RKMK54
 from ._solver._variational import VariationalMidpoint
@@ -128,6 +128,7 @@ __all__ = [
     "mass_and_centre",
     "metric",
     "models",
+    "project_to_se3",
     "reference_accelerations",
     "shape_acceleration",
     "shape_metric",

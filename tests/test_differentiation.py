@@ -59,14 +59,16 @@ def test_backsolve_gradient_matches_finite_differences():
     np.testing.assert_allclose(grad, _finite_difference_gradient(), rtol=1e-5, atol=1e-6)
 
 
-def test_vmap_over_initial_states_equals_a_loop(key):
-    """jax.vmap over 64 initial states gives what a Python loop of single solves gives."""
+def test_vmap_over_initial_states_and_parameters_equals_a_loop(key):
+    """jax.vmap over 64 initial states and spring stiffnesses gives what single solves give."""
     xi0 = 0.5 * jax.random.normal(key, (64, 6))
-    run = jax.jit(
-        lambda xi: bd.simulate(
-            bd.Scene(THREE), eqx.tree_at(lambda s: s.xi, THREE_STATE, xi), 1.0
-        ).g[-1]
-    )
-    batched = jax.jit(jax.vmap(run))(xi0)
-    looped = jnp.stack([run(x) for x in xi0[:8]])
+    stiffness = jnp.linspace(0.5, 5.0, 64)
+
+    @jax.jit
+    def run(xi, k):
+        state = eqx.tree_at(lambda s: s.xi, THREE_STATE, xi)
+        return bd.simulate(bd.Scene(THREE, (bd.ShapeSpring(k),)), state, 1.0).g[-1]
+
+    batched = jax.jit(jax.vmap(run))(xi0, stiffness)
+    looped = jnp.stack([run(x, k) for x, k in zip(xi0[:8], stiffness[:8], strict=True)])
     np.testing.assert_allclose(batched[:8], looped, rtol=1e-9, atol=1e-11)
