@@ -145,6 +145,22 @@ def se3_vee(X):
     return jnp.concatenate([so3_vee(X[..., :3, :3]), X[..., :3, 3]], axis=-1)
 
 
+def _on_algebra(name, x, on_so3, on_se3):
+    """Dispatch on a vector's last dimension: 3 (so(3)) or 6 (se(3))."""
+    n = jnp.shape(x)[-1]
+    if n not in (3, 6):
+        raise ValueError(f"{name} expects a last dimension of 3 or 6, got shape {jnp.shape(x)}")
+    return on_so3(x) if n == 3 else on_se3(x)
+
+
+def _on_group(name, X, on_so3, on_se3):
+    """Dispatch on a matrix's trailing shape: (3, 3) (SO(3)) or (4, 4) (SE(3))."""
+    shape = jnp.shape(X)
+    if shape[-2:] not in ((3, 3), (4, 4)):
+        raise ValueError(f"{name} expects trailing shape (3, 3) or (4, 4), got {shape}")
+    return on_so3(X) if shape[-2:] == (3, 3) else on_se3(X)
+
+
 def hat(x):
     r"""Hat map, dispatching on the last dimension.
 
@@ -159,12 +175,7 @@ def hat(x):
 
     Shape `(..., 3, 3)` or `(..., 4, 4)`.
     """
-    n = jnp.shape(x)[-1]
-    if n == 3:
-        return so3_hat(x)
-    if n == 6:
-        return se3_hat(x)
-    raise ValueError(f"hat expects a last dimension of 3 or 6, got shape {jnp.shape(x)}")
+    return _on_algebra("hat", x, so3_hat, se3_hat)
 
 
 def vee(X):
@@ -178,12 +189,7 @@ def vee(X):
 
     Shape `(..., 3)` or `(..., 6)`.
     """
-    shape = jnp.shape(X)
-    if shape[-2:] == (3, 3):
-        return so3_vee(X)
-    if shape[-2:] == (4, 4):
-        return se3_vee(X)
-    raise ValueError(f"vee expects trailing shape (3, 3) or (4, 4), got {shape}")
+    return _on_group("vee", X, so3_vee, se3_vee)
 
 
 def se3_exp(xi):
@@ -255,12 +261,7 @@ def exp(x):
 
     Shape `(..., 3, 3)` or `(..., 4, 4)`.
     """
-    n = jnp.shape(x)[-1]
-    if n == 3:
-        return so3_exp(x)
-    if n == 6:
-        return se3_exp(x)
-    raise ValueError(f"exp expects a last dimension of 3 or 6, got shape {jnp.shape(x)}")
+    return _on_algebra("exp", x, so3_exp, se3_exp)
 
 
 def log(g):
@@ -274,12 +275,7 @@ def log(g):
 
     Shape `(..., 3)` or `(..., 6)`.
     """
-    shape = jnp.shape(g)
-    if shape[-2:] == (3, 3):
-        return so3_log(g)
-    if shape[-2:] == (4, 4):
-        return se3_log(g)
-    raise ValueError(f"log expects trailing shape (3, 3) or (4, 4), got {shape}")
+    return _on_group("log", g, so3_log, se3_log)
 
 
 def Ad(g):
@@ -467,12 +463,7 @@ def dexp(x):
 
     Shape `(..., 3, 3)` or `(..., 6, 6)`.
     """
-    n = jnp.shape(x)[-1]
-    if n == 3:
-        return so3_dexp(x)
-    if n == 6:
-        return se3_dexp(x)
-    raise ValueError(f"dexp expects a last dimension of 3 or 6, got shape {jnp.shape(x)}")
+    return _on_algebra("dexp", x, so3_dexp, se3_dexp)
 
 
 def dexp_inv(x):
@@ -486,9 +477,4 @@ def dexp_inv(x):
 
     Shape `(..., 3, 3)` or `(..., 6, 6)`.
     """
-    n = jnp.shape(x)[-1]
-    if n == 3:
-        return so3_dexp_inv(x)
-    if n == 6:
-        return se3_dexp_inv(x)
-    raise ValueError(f"dexp_inv expects a last dimension of 3 or 6, got shape {jnp.shape(x)}")
+    return _on_algebra("dexp_inv", x, so3_dexp_inv, se3_dexp_inv)
