@@ -6,7 +6,7 @@ import jax.numpy as jnp
 from jaxtyping import Array, Float
 
 from . import lie
-from ._geometry import kinetic_energy, locked_inertia
+from ._geometry import kinetic_energy
 from ._scene import Scene
 
 
@@ -61,13 +61,9 @@ class Trajectory(eqx.Module):
         system = self.scene.system
 
         def one(kin):
-            U = kin.xi + (
-                jnp.linalg.solve(locked_inertia(system, kin.q), system.metric(kin.q)[:6, 6:])
-                @ kin.qdot
-                if system.shape_dim
-                else 0.0
-            )
-            return lie.coAd(kin.g) @ locked_inertia(system, kin.q) @ U
+            # Body momentum of the section frame: I_r ξ + B q̇ = I_r U.
+            p = system.metric(kin.q)[:6] @ jnp.concatenate([kin.xi, kin.qdot])
+            return lie.coAd(kin.g) @ p
 
         return jax.vmap(one)(self._kinematics())
 

@@ -56,7 +56,10 @@ def test_backsolve_gradient_matches_finite_differences():
         stepsize_controller=diffrax.PIDController(rtol=1e-10, atol=1e-10)
     )
     grad = jax.jit(jax.grad(lambda p: _rollout_loss(p, adjoint)))(PARAMS)
-    np.testing.assert_allclose(grad, _finite_difference_gradient(), rtol=1e-5, atol=1e-6)
+    fd = _finite_difference_gradient()
+    # 1e-6 relative to the gradient's scale: the continuous adjoint is compared with a
+    # discrete map whose own error is ~1e-7 on the smallest components.
+    np.testing.assert_allclose(grad, fd, rtol=1e-6, atol=1e-6 * np.abs(fd).max())
 
 
 def test_vmap_over_initial_states_and_parameters_equals_a_loop(key):
