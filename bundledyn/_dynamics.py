@@ -83,11 +83,6 @@ def bundle_geometry(system: AbstractSystem, q: Float[Array, " d"]) -> BundleGeom
     return BundleGeometry(G, dG, I_r, dI_r, A, dA, J_def, dJ_def, Omega)
 
 
-def _ad_of_columns(A):
-    """ad of every column of A: shape (d, 6, 6)."""
-    return lie.ad(A.T)
-
-
 def inertia_covariant_derivative(geo: BundleGeometry, u: Float[Array, " d"]) -> Float[Array, "6 6"]:
     """$\\nabla_x \\mathbf I(s)(u)$ in the section frame: the derivative of the locked inertia along
     the horizontal lift of the shape velocity $u$ (seed 004, (2.4), (2.7)).

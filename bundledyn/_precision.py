@@ -19,11 +19,6 @@ def enable_x64(enable: bool = True) -> None:
     jax.config.update("jax_enable_x64", enable)
 
 
-def default_float():
-    """The floating dtype JAX currently creates by default (float32 or float64)."""
-    return jnp.asarray(0.0).dtype
-
-
 def warn_if_tolerance_too_tight(tolerance: float, dtype) -> None:
     """Warn when a requested tolerance is below what `dtype` can resolve.
 

@@ -73,7 +73,3 @@ class AffineBody(AbstractSystem):
         G = G.at[:3, :3].set(K[:3, :3]).at[:3, 6:].set(K[:3, 3:])
         G = G.at[6:, :3].set(K[3:, :3]).at[6:, 6:].set(K[3:, 3:])
         return G.at[3:6, 3:6].set(self.mass * jnp.eye(3, dtype=q.dtype))
-
-    def deformation_gradient(self, q) -> Float[Array, "3 3"]:
-        """$F$ in the section frame, i.e. $U(q)$ (the world value is $R\\,U(q)$)."""
-        return stretch(q)

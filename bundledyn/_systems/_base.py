@@ -55,7 +55,3 @@ class AbstractSystem(eqx.Module):
         matrix products). The default is forward-mode autodiff of `metric`.
         """
         return self.metric(q), jnp.moveaxis(jax.jacfwd(self.metric)(q), -1, 0)
-
-    def neutral_shape(self) -> Float[Array, " d"]:
-        """A reference shape $q_0$ (zero coordinates unless a system says otherwise)."""
-        return jnp.zeros(self.shape_dim)
