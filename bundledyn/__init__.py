@@ -2,7 +2,7 @@
 
 import pathlib
 
-from . import lie
+from . import checks, lie
 from ._dynamics import (
     BundleGeometry,
     bundle_geometry,
@@ -108,6 +108,7 @@ __all__ = [
     "Universal",
     "VariationalMidpoint",
     "bundle_geometry",
+    "checks",
     "coadjoint_term",
     "connection",
     "curvature",
