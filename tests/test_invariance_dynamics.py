@@ -1,0 +1,126 @@
+"""Dynamic invariance checks: boosted frames (Theorem 2.2) and falling frames (Theorem 3.4)."""
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+from systems import affine_body, chain, chain3_state
+
+import bundledyn as bd
+
+SYSTEMS = {
+    "chain3": lambda: chain(3),
+    "affine_body": affine_body,
+    "anisotropic_mass": bd.checks.anisotropic_mass,
+    "shape_dependent_mass": bd.checks.shape_dependent_mass,
+    "drifting_centre": bd.checks.drifting_centre,
+    "translational_curvature": bd.checks.translational_curvature,
+}
+INVARIANT = ("chain3", "affine_body")
+RTOL, ATOL = 1e-10, 1e-12
+SPEEDS = jnp.array([0.0, 0.5, 1.0, 2.0, 4.0])
+DIRECTION = jnp.array([0.6, -0.48, 0.64])
+
+
+@eqx.filter_jit
+def _frame_terms(system, g, q, U, qdot, velocity):
+    """Boosted-frame minus Galilean-frame accelerations from the scenes' vector fields, and
+    the prediction of (2.9)–(2.10) from the checks, at the velocities `velocity` (batch)."""
+    galilean = bd.Scene(system)
+    x = galilean.join(q, U, qdot)
+    d = system.shape_dim
+
+    def accelerations(scene):
+        xdot = scene.vector_field(jnp.zeros(()), (g, x))[1]
+        return (xdot[d : d + 6], xdot[d + 6 :]) if d else (xdot, xdot[:0])
+
+    base = accelerations(galilean)
+
+    def one(u):
+        boosted = accelerations(bd.Scene(system, frame=bd.Boosted(u)))
+        observed = jnp.concatenate([boosted[0] - base[0], boosted[1] - base[1]])
+        predicted = jnp.concatenate(bd.checks.boost_terms(system, g, q, U, qdot, u))
+        return observed, predicted
+
+    return jax.vmap(one)(velocity)
+
+
+@pytest.mark.parametrize("name", SYSTEMS)
+def test_frame_terms_are_those_of_2_9_and_2_10(name, key):
+    """The boosted scene's extra accelerations equal `boost_terms`, which is linear plus
+    quadratic in the boost velocity u: f(2u) = 3 f(u) + f(-u)."""
+    system = SYSTEMS[name]()
+    d = system.shape_dim
+    k = jax.random.split(key, 5)
+    g = bd.lie.se3_exp(jax.random.normal(k[0], (6,)))
+    q, qdot = 0.5 * jax.random.normal(k[1], (d,)), jax.random.normal(k[3], (d,))
+    U, u = jax.random.normal(k[2], (6,)), jax.random.normal(k[4], (3,))
+    observed, predicted = _frame_terms(system, g, q, U, qdot, jnp.stack([u, -u, 2 * u]))
+    size = jnp.max(jnp.abs(observed))
+    if name in INVARIANT:
+        assert size <= 1e-12 and jnp.max(jnp.abs(predicted)) <= 1e-12
+        return
+    assert size > 1e-2
+    np.testing.assert_allclose(observed, predicted, atol=1e-13 * size)
+    np.testing.assert_allclose(observed[2], 3 * observed[0] + observed[1], atol=1e-12 * size)
+
+
+@eqx.filter_jit
+def _boosts(system, state):
+    return jax.vmap(
+        lambda s: bd.checks.boost_discrepancy(
+            system, state, s * DIRECTION, 2.0, rtol=RTOL, atol=ATOL
+        )
+    )(SPEEDS)
+
+
+def _generic_state(d):
+    return bd.State(
+        jnp.eye(4), 0.3 * jnp.ones(d), jnp.array([0.3, 0.2, -0.4, 0.1, 0.0, 0.2]), 0.5 * jnp.ones(d)
+    )
+
+
+def test_invariant_chain_moves_alike_in_every_galilean_frame():
+    """Revolute, universal joints; boosts up to 4 m/s for 2 s: agreement to the solver tolerance."""
+    result = _boosts(chain(3), chain3_state())
+    assert jnp.max(result.shape) <= 1e-9
+    assert jnp.max(result.pose) <= 1e-9  # over translations of up to 8 m
+
+
+@pytest.mark.parametrize("name", [n for n in SYSTEMS if n not in INVARIANT])
+def test_counterexamples_disagree_more_the_faster_the_boost(name):
+    result = _boosts(SYSTEMS[name](), _generic_state(SYSTEMS[name]().shape_dim))
+    assert result.pose[0] <= 1e-12  # no boost, no difference
+    assert jnp.all(result.pose[1:] > 1e-2)  # 1e7 times the tolerance of the invariant case
+    assert jnp.all(jnp.diff(result.pose) > 0)
+
+
+@eqx.filter_jit
+def _falling(system, state, gravities):
+    return jax.vmap(
+        lambda gravity: bd.checks.gravity_discrepancy(
+            system, gravity, state, 2.0, rtol=RTOL, atol=ATOL
+        )
+    )(gravities)
+
+
+def test_gravity_disappears_in_a_falling_frame_unless_the_centres_or_masses_differ():
+    """Theorem 3.4 on a chain; the seed's remark: a centre of gravity 1 cm off the centre of mass,
+    or a gravitational mass 1% above the inertial one, breaks it. In the latter case the whole
+    system falls with 1.01 g, so from the falling frame it drifts by 0.01·g t²/2 (closed form)."""
+    system, state = chain(3), chain3_state()
+    m = system.metric(state.q)[3, 3]
+    direction = jnp.array([0.1, 0.2, -1.0])
+    variants = [
+        bd.Gravity(9.81, direction, gravitational_mass=m, centre_offset=jnp.zeros(3)),
+        bd.Gravity(
+            9.81, direction, gravitational_mass=m, centre_offset=jnp.array([0.0, 0.01, 0.0])
+        ),
+        bd.Gravity(9.81, direction, gravitational_mass=1.01 * m, centre_offset=jnp.zeros(3)),
+    ]
+    result = _falling(system, state, jax.tree.map(lambda *x: jnp.stack(x), *variants))
+    assert result.shape[0] <= 1e-9 and result.pose[0] <= 1e-9  # fell 19.6 m
+    assert result.shape[1] > 1e-2 and result.pose[1] > 1e-2
+    assert result.shape[2] <= 1e-9
+    np.testing.assert_allclose(result.pose[2], 0.01 * 9.81 * 2.0**2 / 2, rtol=1e-8)
