@@ -5,6 +5,8 @@ import warnings
 import jax
 import jax.numpy as jnp
 
+from ._systems._validation import concrete
+
 
 def enable_x64(enable: bool = True) -> None:
     """Switch JAX to float64 as the default working precision.
@@ -28,7 +30,8 @@ def warn_if_tolerance_too_tight(tolerance: float, dtype) -> None:
     - `dtype`: the floating dtype the computation will run in.
     """
     eps = float(jnp.finfo(dtype).eps)
-    if tolerance < 100 * eps:
+    value = concrete(tolerance)  # None under jit: a traced tolerance is the caller's choice
+    if value is not None and value < 100 * eps:
         warnings.warn(
             f"a tolerance of {tolerance:g} was asked for in {jnp.dtype(dtype).name}, whose "
             f"rounding error is {eps:.1e}; call `bundledyn.enable_x64()` before building arrays "
