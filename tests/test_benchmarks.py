@@ -1,0 +1,21 @@
+"""The benchmark scripts stay alive: `--quick` runs end to end (timings are never asserted)."""
+
+import json
+
+import numpy as np
+
+from benchmarks import accuracy_cost
+
+
+def test_accuracy_cost_quick_writes_its_report(tmp_path):
+    report = accuracy_cost.main(["--quick", "--out", str(tmp_path), "--repeats", "2"])
+    (problem,) = report["problems"]
+    assert problem["reference_agreement"] < 1e-10
+    for series in problem["series"]:
+        errors = [p["error"] for p in series["points"]]
+        assert all(p["ok"] for p in series["points"]) and np.all(np.isfinite(errors))
+        assert errors[-1] < errors[0]  # a tighter setting is more accurate
+    assert json.loads((tmp_path / "accuracy_cost_quick.json").read_text())["quick"] is True
+    assert "| RKMK54 |" in (tmp_path / "accuracy_cost_quick.md").read_text()
+    png = (tmp_path / "accuracy_cost_dzhanibekov.png").read_bytes()
+    assert png[:8] == b"\x89PNG\r\n\x1a\n" and len(png) > 10_000
