@@ -49,6 +49,7 @@ import jax.numpy as jnp  # noqa: E402
 import numpy as np  # noqa: E402
 
 import bundledyn as bd  # noqa: E402
+from benchmarks.speed_scaling import chain_scene  # noqa: E402
 from bundledyn import lie  # noqa: E402
 
 jax.config.update("jax_enable_x64", True)
@@ -79,27 +80,6 @@ class Problem:
     energy: bool  # energy conserved (no prescribed motion, no damping)
     momentum: bool  # spatial momentum conserved (no external wrench)
     stiff: bool = False
-
-
-def _box(mass, size, com=(0.0, 0.0, 0.0)):
-    a, b, c = size
-    return bd.RigidBody(
-        mass, com, mass / 12.0 * np.diag([b * b + c * c, a * a + c * c, a * a + b * b])
-    )
-
-
-def _hinge_chain(n):
-    bodies = [
-        _box(1.0 + 0.3 * i, (0.5, 0.1 + 0.02 * i, 0.08), (0.02 * i, 0.01, 0.0)) for i in range(n)
-    ]
-    placement = np.eye(4)
-    placement[0, 3] = 0.5
-    axes = ((0.0, 1.0, 0.0), (0.0, 0.0, 1.0))
-    links = [
-        bd.Link(bodies[i], bd.Revolute(axes[i % 2], (-0.25, 0.0, 0.0)), i - 1, placement)
-        for i in range(1, n)
-    ]
-    return bd.Multibody(bodies[0], links)
 
 
 def _moving(d, xi=(0.3, 0.2, -0.4, 0.1, 0.0, 0.2), qdot=0.5, q=0.1):
@@ -185,7 +165,7 @@ def falling_cat():
 
 
 def gravity_gradient_chain():
-    system = _hinge_chain(10)
+    system = chain_scene(10).system
     effect = bd.GravityGradient(3.986e14, (-7.0e6, 0.0, 0.0), per_body=True)
     state = bd.State(
         jnp.eye(4),
@@ -205,7 +185,7 @@ def gravity_gradient_chain():
 
 
 def stiff_chain():
-    system = _hinge_chain(3)
+    system = chain_scene(3).system
     # Joint 1 is a spring 10⁶ times stiffer than joint 2: a fast mode 10³ times faster.
     spring = bd.ShapeSpring(jnp.array([1.0e6, 1.0]))
     return Problem(
@@ -587,7 +567,7 @@ def compile_times(ns, repeats=3):
     """Compile time of `simulate` for hinge chains of n bodies (n = 1 is a single body)."""
     rows = []
     for n in ns:
-        system = _box(1.0, (0.5, 0.1, 0.08)) if n == 1 else _hinge_chain(n)
+        system = chain_scene(n).system
         d = system.shape_dim
         scene, state = bd.Scene(system), _moving(d)
         solve = jax.jit(
