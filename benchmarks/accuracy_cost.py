@@ -614,42 +614,16 @@ def environment():
 
 def plot(problem_result, path):
     try:
-        import matplotlib
-
-        matplotlib.use("Agg")
-        import matplotlib.pyplot as plt
+        from bundledyn import viz
     except ImportError:
         print("  matplotlib is not installed: no diagrams (pip install '.[viz]')")
         return None
-    fig, ax = plt.subplots(figsize=(7.0, 4.8), dpi=110)
-    for series in problem_result["series"]:
-        pts = [p for p in series["points"] if p["ok"] and np.isfinite(p["error"])]
-        if not pts:
-            continue
-        style = {"Lie group": "-o", "embedded": "--s", "peer": ":^"}[series["family"]]
-        ax.loglog(
-            [p["time"]["median"] for p in pts],
-            [max(p["error"], 1e-16) for p in pts],
-            style,
-            ms=4,
-            label=series["method"],
-        )
-    ax.axhline(
-        problem_result["reference_agreement"],
-        color="grey",
-        lw=0.8,
-        ls="-.",
-        label="reference floor",
+    viz.plot_work_precision(
+        problem_result["series"],
+        title=problem_result["title"],
+        floor=problem_result["reference_agreement"],
+        path=path,
     )
-    ax.set_xlabel("wall time per solve [s] (median of runs)")
-    ax.set_ylabel("error of the state at t1")
-    ax.set_title(problem_result["title"], fontsize=9)
-    ax.grid(True, which="major", alpha=0.3)
-    ax.xaxis.set_minor_formatter(matplotlib.ticker.NullFormatter())
-    ax.legend(fontsize=7, ncol=2)
-    fig.tight_layout()
-    fig.savefig(path)
-    plt.close(fig)
     return path.name
 
 

@@ -43,7 +43,9 @@ from ._geometry import (
 from ._holonomy import curvature_by_holonomy, horizontal_lift, square_loop_holonomy
 from ._precision import enable_x64
 from ._scene import Free, Prescribed, Scene
+from ._scene_file import SceneFile, SceneFileError, load_system
 from ._simulate import project_to_se3, simulate
+from ._solids import AbstractSolid, Box, Capsule, Ellipsoid
 from ._solver._lie_euler import LieEuler
 from ._solver._rkmk import RKMK4, RKMK54
 from ._solver._variational import VariationalMidpoint
@@ -68,17 +70,23 @@ __version__ = "0.1.0"
 
 #: Folder of the example models shipped with the package (MJCF and URDF).
 models = pathlib.Path(__file__).parent / "models"
+#: Folder of the example scene files shipped with the package (TOML, see `SceneFile`).
+scenes = pathlib.Path(__file__).parent / "scenes"
 
 __all__ = [
     "AbstractEffect",
     "AbstractFrame",
     "AbstractJoint",
     "AbstractPotential",
+    "AbstractSolid",
     "AbstractSystem",
     "AffineBody",
     "Boosted",
+    "Box",
+    "Capsule",
     "BundleGeometry",
     "Composite",
+    "Ellipsoid",
     "ExternalWrench",
     "Fixed",
     "Free",
@@ -98,6 +106,8 @@ __all__ = [
     "Revolute",
     "RigidBody",
     "Scene",
+    "SceneFile",
+    "SceneFileError",
     "ShapeDamper",
     "ShapeForce",
     "ShapePotential",
@@ -122,6 +132,7 @@ __all__ = [
     "kinetic_covariant_derivative",
     "kinetic_energy",
     "levi_civita_term",
+    "load_system",
     "lie",
     "locked_acceleration",
     "locked_inertia",
@@ -131,6 +142,7 @@ __all__ = [
     "models",
     "project_to_se3",
     "reference_accelerations",
+    "scenes",
     "shape_acceleration",
     "shape_metric",
     "simulate",

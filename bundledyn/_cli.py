@@ -1,68 +1,191 @@
-"""The `bundledyn` command line."""
+"""The `bundledyn` command line: `demo`, `run SCENE.toml` and `check MODEL`."""
 
 import argparse
+import datetime
+import json
 import os
+import pathlib
 import sys
 import time
 
 
-def demo(args) -> int:
-    """A falling-cat reorientation: two bodies turn themselves with zero angular momentum."""
+def _pictures_available() -> bool:
+    try:
+        import matplotlib  # noqa: F401
+    except ImportError:
+        print("  (no pictures: matplotlib is not installed; pip install 'bundledyn[viz]')")
+        return False
+    return True
+
+
+def _solve(scene_file, *, progress=False):
+    """Simulate a scene file: `(trajectory, seconds)`; `_Failure` if the solver stopped early."""
+    import diffrax
+
+    start = time.perf_counter()
+    traj = scene_file.simulate(progress=progress, throw=False)
+    elapsed = time.perf_counter() - start
+    if not bool(traj.result == diffrax.RESULTS.successful):
+        raise _Failure(
+            f"{scene_file.path}: the solver stopped early: {diffrax.RESULTS[traj.result]}"
+        )
+    return traj, elapsed
+
+
+class _Failure(Exception):
+    """A run that went wrong in a way the user can fix; reported in one line, exit code 1."""
+
+
+def _summary(scene_file, traj, elapsed):
+    import numpy as np
+
+    energy = np.asarray(traj.energy())
+    momentum = np.asarray(traj.spatial_momentum())
+    system = scene_file.scene.system
+    print(
+        f"  system: {type(system).__name__}, {system.shape_dim} shape coordinates; "
+        f"{len(scene_file.scene.effects)} effects; shape "
+        f"{type(scene_file.scene.shape).__name__.lower()}"
+    )
+    print(
+        f"  simulated {scene_file.t0:g}..{scene_file.t1:g} s with {type(scene_file.solver).__name__}"
+        f": {int(traj.stats['num_steps'])} steps, {elapsed:.1f} s including compilation"
+    )
+    print(f"  energy change E(t1) - E(t0): {energy[-1] - energy[0]:.2e} (E(t0) = {energy[0]:.6g})")
+    print(f"  largest change of spatial momentum: {np.abs(momentum - momentum[0]).max():.2e}")
+    print(f"  rotation orthogonal to {float(traj.orthogonality_error().max()):.1e}")
+
+
+def _write_pictures(scene_file, traj, out, stem):
+    from . import viz
+
+    written = [out / f"{stem}_motion.png", out / f"{stem}_drift.png"]
+    viz.plot_motion(traj, path=written[0])
+    viz.plot_drift(traj, path=written[1])
+    if scene_file.output["animation"]:
+        written.append(
+            viz.animate(
+                traj,
+                out / f"{stem}.gif",
+                solids=scene_file.solids,
+                frames=scene_file.output["frames"],
+            )
+        )
+    return written
+
+
+def _write_trajectory(scene_file, traj, path, elapsed):
+    import jax
+    import numpy as np
+
+    from . import __version__
+    from ._files import atomic_path
+
+    metadata = {
+        "bundledyn": __version__,
+        "jax": jax.__version__,
+        "date": datetime.datetime.now().isoformat(timespec="seconds"),
+        "scene_file": str(scene_file.path),
+        "solver": type(scene_file.solver).__name__,
+        "options": scene_file.options,
+        "stats": {k: np.asarray(v).tolist() for k, v in traj.stats.items()},
+        "seconds": elapsed,
+    }
+    with atomic_path(path) as tmp:
+        np.savez(
+            tmp,
+            ts=traj.ts,
+            g=traj.g,
+            q=traj.q,
+            xi=traj.xi,
+            qdot=traj.qdot,
+            U=traj.U,
+            energy=traj.energy(),
+            spatial_momentum=traj.spatial_momentum(),
+            scene=np.array(scene_file.text),
+            metadata=np.array(json.dumps(metadata)),
+        )
+    return path
+
+
+def run(args) -> int:
+    """Simulate a scene file and write its trajectory and pictures."""
+    import bundledyn as bd
+
+    scene_file = bd.SceneFile.load(args.scene)
+    out = pathlib.Path(args.out)
+    if not out.is_dir():
+        raise _Failure(f"{out}: the output folder does not exist.")
+    print(f"bundledyn run {scene_file.path}")
+    traj, elapsed = _solve(scene_file, progress=args.progress)
+    _summary(scene_file, traj, elapsed)
+    path = out / scene_file.output["trajectory"]
+    written = [_write_trajectory(scene_file, traj, path, elapsed)]
+    if scene_file.output["plots"] and not args.no_pictures and _pictures_available():
+        written += _write_pictures(scene_file, traj, out, path.stem)
+    for p in written:
+        print(f"  wrote {p}")
+    return 0
+
+
+def check(args) -> int:
+    """Print the Galilean-invariance report of a model; exit 1 if it fails."""
     import jax
 
-    jax.config.update("jax_enable_x64", True)
+    import bundledyn as bd
+
+    system = bd.load_system(args.model)
+    report = bd.checks.galilean_invariance(
+        system, jax.random.key(args.seed), n=args.samples, tolerance=args.tolerance
+    )
+    print(f"bundledyn check {args.model}")
+    print(report)
+    return 0 if report.passed else 1
+
+
+def demo(args) -> int:
+    """A falling cat turns itself over at zero angular momentum: simulated, checked, drawn."""
+    import jax
     import jax.numpy as jnp
     import numpy as np
 
     import bundledyn as bd
     from bundledyn import lie
 
-    half = bd.RigidBody(1.5, [0.0, 0.0, 0.0], np.diag([0.02, 0.08, 0.08]))
-    # Two half-bodies joined by a universal joint at the "waist" (the seed's falling cat).
-    cat = bd.Multibody(
-        half,
-        [bd.Link(half, bd.Universal([0, 0, 1], [0, 1, 0], [-0.25, 0, 0]), 0, _offset(0.5))],
-    )
-    period, radius = 1.0, 0.6
-
-    def bend(t):
-        phase = 2 * jnp.pi * t / period
-        return radius * jnp.array([jnp.sin(phase), 1.0 - jnp.cos(phase)])
-
-    scene = bd.Scene(cat, shape=bd.Prescribed(bend))
-    q0, qdot0 = scene.shape.at(0.0)
-    state = bd.State(jnp.eye(4), q0, -bd.connection(cat, q0) @ qdot0, qdot0)  # zero momentum
-    start = time.perf_counter()
-    traj = bd.simulate(scene, state, period, rtol=1e-10, atol=1e-12)
-    elapsed = time.perf_counter() - start
-    rotation = lie.so3_log(traj.g[-1, :3, :3])
-    holonomy = bd.horizontal_lift(cat, lambda s: bend(s * period), steps=128)
-    momentum = np.abs(traj.spatial_momentum()).max()
+    scene_file = bd.SceneFile.load(bd.scenes / "falling_cat.toml")
+    cat, bend = scene_file.scene.system, scene_file.scene.shape.q_of_t
     print("bundledyn demo: a falling cat turns itself over with zero angular momentum")
-    print(f"  system: two bodies and a universal joint, shape loop of radius {radius} rad")
+    print(f"  scene file: {scene_file.path}")
+    traj, elapsed = _solve(scene_file)
+    _summary(scene_file, traj, elapsed)
+    rotation = np.asarray(lie.so3_log(traj.g[-1, :3, :3]))
+    angle = np.linalg.norm(rotation)
     print(
-        f"  simulated {period} s with RKMK 5(4) at rtol 1e-10: {int(traj.stats['num_steps'])} steps, "
-        f"{elapsed:.1f} s including compilation"
+        f"  net rotation after one shape loop: {np.degrees(angle):.2f} deg about "
+        f"{np.round(rotation / angle, 3)}"
+    )
+    period = scene_file.t1 - scene_file.t0
+    holonomy = bd.horizontal_lift(cat, lambda s: bend(scene_file.t0 + s * period), steps=128)
+    print(
+        "  check: the holonomy of the shape loop (xi = -A qdot integrated on its own) equals "
+        f"the final pose to {np.abs(np.asarray(holonomy) - np.asarray(traj.g[-1])).max():.1e}"
+    )
+    reduced = jax.vmap(lambda q, qd: 0.5 * qd @ bd.shape_metric(cat, q) @ qd)(traj.q, traj.qdot)
+    print(
+        "  check: kinetic energy equals the reduced energy J(qdot, qdot)/2 of zero momentum "
+        f"to {float(jnp.max(jnp.abs(traj.energy() - reduced))):.1e}"
     )
     print(
-        f"  net rotation after one shape loop: {np.degrees(np.linalg.norm(rotation)):.2f} deg "
-        f"about {np.round(rotation / np.linalg.norm(rotation), 3)}"
+        f"  check: largest spatial momentum component: {np.abs(traj.spatial_momentum()).max():.1e}"
     )
-    print(
-        f"  holonomy of the loop (integrating xi = -A qdot directly): "
-        f"{np.abs(np.asarray(holonomy) - np.asarray(traj.g[-1])).max():.1e} difference"
-    )
-    print(f"  largest spatial momentum component during the motion: {momentum:.1e}")
-    print(f"  rotation matrix orthogonal to {float(traj.orthogonality_error().max()):.1e}")
+    report = bd.checks.galilean_invariance(cat, jax.random.key(0), n=64)
+    print("  " + str(report).replace("\n", "\n  "))
+    if not args.no_pictures and _pictures_available():
+        out = pathlib.Path(args.out)
+        out.mkdir(parents=True, exist_ok=True)
+        for p in _write_pictures(scene_file, traj, out, "falling_cat"):
+            print(f"  wrote {p}")
     return 0
-
-
-def _offset(x):
-    import numpy as np
-
-    T = np.eye(4)
-    T[0, 3] = x
-    return T
 
 
 def main(argv=None) -> int:
@@ -71,14 +194,37 @@ def main(argv=None) -> int:
         description="Dynamics on principal SE(3) bundles (Chevallier's equations) in JAX.",
     )
     commands = parser.add_subparsers(dest="command", required=True)
-    commands.add_parser("demo", help="simulate and check a falling-cat reorientation").set_defaults(
-        run=demo
-    )
+    p = commands.add_parser("demo", help="simulate, check and draw a falling-cat reorientation")
+    p.add_argument("--out", default="bundledyn-demo", help="folder for the pictures")
+    p.add_argument("--no-pictures", action="store_true", help="print the summary only")
+    p.set_defaults(run=demo)
+    p = commands.add_parser("run", help="simulate a scene file (TOML), write trajectory and plots")
+    p.add_argument("scene", help="the scene file")
+    p.add_argument("--out", default=".", help="existing folder for the outputs (default: here)")
+    p.add_argument("--progress", action="store_true", help="show diffrax's progress meter")
+    p.add_argument("--no-pictures", action="store_true", help="write the trajectory only")
+    p.set_defaults(run=run)
+    p = commands.add_parser("check", help="Galilean-invariance report of a model")
+    p.add_argument("model", help="an MJCF (.xml), URDF (.urdf) or scene (.toml) file")
+    p.add_argument("--samples", type=int, default=256, help="sampled shapes (default 256)")
+    p.add_argument("--tolerance", type=float, default=1e-10, help="largest residual (1e-10)")
+    p.add_argument("--seed", type=int, default=0, help="random seed of the shapes")
+    p.set_defaults(run=check)
     args = parser.parse_args(argv)
     # XLA reads its flags when the backend starts (first computation, not import); the CPU
     # fusion emitters slow the compilation of these deep, small graphs 2-4x.
     os.environ.setdefault("XLA_FLAGS", "--xla_cpu_use_fusion_emitters=false")
-    return args.run(args)
+    import bundledyn as bd
+
+    bd.enable_x64()
+    try:
+        return args.run(args)
+    except bd.SceneFileError as error:
+        print(f"bundledyn: error: {error}", file=sys.stderr)
+        return 2
+    except (_Failure, ImportError) as error:
+        print(f"bundledyn: error: {error}", file=sys.stderr)
+        return 1
 
 
 if __name__ == "__main__":

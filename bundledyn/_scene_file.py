@@ -1,0 +1,518 @@
+"""Scene files: a whole simulation (system, effects, shape, frame, state, solver) in TOML.
+
+A scene file is what one researcher hands another: `bundledyn run scene.toml` simulates
+it, `bundledyn check scene.toml` checks its model. Every table and key is described in
+`SceneFile`'s docstring; every mistake is reported with the file, the field and the value.
+"""
+
+import contextlib
+import dataclasses
+import pathlib
+import tomllib
+from typing import Any
+
+import diffrax
+import jax.numpy as jnp
+import numpy as np
+
+from . import lie
+from ._effects import Gravity, GravityGradient, ShapeDamper, ShapeSpring
+from ._frames import Boosted, FreeFalling
+from ._geometry import connection
+from ._scene import Prescribed, Scene
+from ._simulate import simulate
+from ._solids import Box, Capsule, Ellipsoid
+from ._solver._lie_euler import LieEuler
+from ._solver._rkmk import RKMK4, RKMK54
+from ._solver._variational import VariationalMidpoint
+from ._state import State
+from ._systems._affine_body import AffineBody
+from ._systems._joints import Fixed, Prismatic, Revolute, Spherical, Universal
+from ._systems._multibody import Link, Multibody
+from ._systems._rigid_body import RigidBody
+from ._trajectory import Trajectory
+
+SOLVERS = {
+    "RKMK54": (RKMK54, False),
+    "RKMK4": (RKMK4, True),
+    "LieEuler": (LieEuler, True),
+    "VariationalMidpoint": (VariationalMidpoint, True),
+    "Tsit5": (diffrax.Tsit5, False),
+    "Dopri5": (diffrax.Dopri5, False),
+    "Dopri8": (diffrax.Dopri8, False),
+    "Kvaerno5": (diffrax.Kvaerno5, False),
+}  # name -> (solver class, takes fixed steps)
+
+
+class SceneFileError(ValueError):
+    """A scene or model file that cannot be used, with the file, field and value at fault."""
+
+
+class _Table:
+    """One TOML table being read: typed getters that name the field when they fail."""
+
+    def __init__(self, file, prefix, data):
+        if not isinstance(data, dict):
+            raise SceneFileError(f"{file}: `{prefix}` must be a table, got {data!r}.")
+        self.file, self.prefix, self.data, self.used = file, prefix, data, set()
+
+    def field(self, key):
+        return f"{self.prefix}.{key}" if self.prefix else key
+
+    def fail(self, key, message):
+        value = self.data.get(key, "<missing>")
+        return SceneFileError(f"{self.file}: field `{self.field(key)}` = {value!r}: {message}")
+
+    def has(self, key):
+        return key in self.data
+
+    def raw(self, key, default=...):
+        self.used.add(key)
+        if key not in self.data:
+            if default is ...:
+                raise self.fail(key, "this field is required.")
+            return default
+        return self.data[key]
+
+    def number(self, key, default=...):
+        if not self.has(key) and default is not ...:
+            return self.raw(key, default)
+        value = self.raw(key)
+        if isinstance(value, bool) or not isinstance(value, int | float):
+            raise self.fail(key, "must be a number.")
+        return float(value)
+
+    def boolean(self, key, default=...):
+        value = self.raw(key, default)
+        if not isinstance(value, bool):
+            raise self.fail(key, "must be true or false.")
+        return value
+
+    def string(self, key, default=..., choices=None):
+        if not self.has(key) and default is not ...:
+            return self.raw(key, default)
+        value = self.raw(key)
+        if not isinstance(value, str):
+            raise self.fail(key, "must be a string.")
+        if choices is not None and value not in choices:
+            raise self.fail(key, f"must be one of {', '.join(sorted(choices))}.")
+        return value
+
+    def array(self, key, shape, default=...):
+        """A float array of `shape`."""
+        if not self.has(key) and default is not ...:
+            return np.asarray(self.raw(key, default), dtype=float)
+        value = self.raw(key)
+        a = np.asarray(value, dtype=float) if _numeric(value) else None
+        if a is None or a.shape != tuple(shape):
+            got = "" if a is None else f", got shape {a.shape}"
+            raise self.fail(key, f"must be numbers of shape {tuple(shape)}{got}.")
+        if not np.all(np.isfinite(a)):
+            raise self.fail(key, "must be finite.")
+        return a
+
+    def vector_or_scalar(self, key, n, default=...):
+        """A length-`n` vector; a scalar is repeated."""
+        value = self.raw(key, default)
+        a = np.asarray(value, dtype=float) if _numeric(value) else None
+        if a is None or a.shape not in ((), (n,)):
+            raise self.fail(key, f"must be a number or a list of {n} numbers.")
+        return np.broadcast_to(a, (n,)).copy()
+
+    def table(self, key, default=...):
+        return _Table(self.file, self.field(key), self.raw(key, default))
+
+    def tables(self, key):
+        value = self.raw(key, [])
+        if not isinstance(value, list):
+            raise self.fail(key, "must be an array of tables ([[...]]).")
+        return [_Table(self.file, f"{self.field(key)}[{i}]", v) for i, v in enumerate(value)]
+
+    def done(self):
+        """Refuse keys nobody read: a typo must not be ignored silently."""
+        unknown = sorted(set(self.data) - self.used)
+        if unknown:
+            known = ", ".join(sorted(self.used)) or "none"
+            raise SceneFileError(
+                f"{self.file}: unknown field `{self.field(unknown[0])}` (fields read here: {known})."
+            )
+
+    @contextlib.contextmanager
+    def building(self, what):
+        """Turn a constructor's `ValueError` into one that names this table."""
+        try:
+            yield
+        except SceneFileError:
+            raise
+        except ValueError as error:
+            raise SceneFileError(f"{self.file}: `{self.prefix}` ({what}): {error}") from None
+
+
+def _numeric(value):
+    try:
+        np.asarray(value, dtype=float)
+    except (TypeError, ValueError):
+        return False
+    return not isinstance(value, bool | str)
+
+
+# ------------------------------------------------------------------------------ bodies
+
+
+def _solid(t: _Table):
+    kind = t.string("solid", None, {"box", "ellipsoid", "capsule"})
+    if kind is None:
+        return None
+    with t.building(kind):
+        if kind == "box":
+            return Box(t.array("size", (3,)))
+        if kind == "ellipsoid":
+            return Ellipsoid(t.array("radii", (3,)))
+        return Capsule(t.number("radius"), t.number("length"))
+
+
+def _rigid_body(t: _Table):
+    """A `RigidBody` from `mass`, `centre` and either `solid` or `inertia`; and its solid."""
+    mass = t.number("mass")
+    centre = t.array("centre", (3,), (0.0, 0.0, 0.0))
+    solid = _solid(t)
+    with t.building("rigid body"):
+        if solid is not None:
+            if t.has("inertia"):
+                raise t.fail("inertia", "give either `solid` or `inertia`, not both.")
+            return solid.rigid_body(mass, centre), solid
+        if not t.has("inertia"):
+            raise t.fail("inertia", "give a `solid` (box, ellipsoid, capsule) or an `inertia`.")
+        moments = _numeric(t.data["inertia"]) and np.ndim(t.data["inertia"]) == 1
+        inertia = t.array("inertia", (3,) if moments else (3, 3))
+        return RigidBody(mass, centre, np.diag(inertia) if moments else inertia), None
+
+
+_JOINTS = {"revolute", "prismatic", "universal", "spherical", "fixed"}
+
+
+def _joint(t: _Table):
+    kind = t.string("joint", choices=_JOINTS)
+    anchor = t.array("anchor", (3,), (0.0, 0.0, 0.0))
+    with t.building(f"{kind} joint"):
+        if kind == "revolute":
+            return Revolute(t.array("axis", (3,)), anchor)
+        if kind == "prismatic":
+            return Prismatic(t.array("axis", (3,)))
+        if kind == "universal":
+            axes = t.array("axes", (2, 3))
+            return Universal(axes[0], axes[1], anchor)
+        if kind == "spherical":
+            return Spherical(anchor)
+        return Fixed()
+
+
+def _placement(t: _Table):
+    T = np.eye(4)
+    T[:3, :3] = np.asarray(lie.so3_exp(jnp.asarray(t.array("rotation", (3,), (0.0, 0.0, 0.0)))))
+    T[:3, 3] = t.array("offset", (3,), (0.0, 0.0, 0.0))
+    return T
+
+
+def _multibody(t: _Table):
+    bodies = t.tables("bodies")
+    if not bodies:
+        raise t.fail("bodies", "a multibody needs at least one [[system.bodies]] table.")
+    names, links, solids = [], [], []
+    for i, b in enumerate(bodies):
+        name = b.string("name", f"body{i}")
+        if name in names:
+            raise b.fail("name", "body names must be unique.")
+        body, solid = _rigid_body(b)
+        if i == 0:
+            base = body
+        else:
+            parent = b.raw("parent", names[-1])
+            if parent not in names:
+                raise b.fail("parent", f"must name an earlier body ({', '.join(names)}).")
+            with b.building("link"):
+                links.append(Link(body, _joint(b), names.index(parent), _placement(b)))
+        b.done()
+        names.append(name)
+        solids.append(solid)
+    with t.building("multibody"):
+        system = Multibody(base, links, names=names)
+    return system, (tuple(solids) if all(s is not None for s in solids) else None)
+
+
+def _affine_body(t: _Table):
+    mass = t.number("mass")
+    if t.has("radii"):
+        radii = t.array("radii", (3,))
+        with t.building("affine body"):
+            solid = Ellipsoid(radii)
+        return AffineBody(mass, mass / 5.0 * np.diag(radii**2)), (solid,)
+    with t.building("affine body"):
+        return AffineBody(mass, t.array("second_moment", (3, 3))), None
+
+
+def _model(t: _Table, kind, folder):
+    from . import models
+
+    if t.has("path") == t.has("model"):
+        raise t.fail("path", "give exactly one of `path` (a file) or `model` (a shipped model).")
+    if t.has("model"):
+        source = models / t.string("model")
+        if not source.is_file():
+            shipped = ", ".join(sorted(p.name for p in models.iterdir()))
+            raise t.fail("model", f"no shipped model of that name (shipped: {shipped}).")
+    else:
+        source = (folder / t.string("path")).resolve()
+        if not source.is_file():
+            raise t.fail("path", f"no such file: {source}.")
+    with t.building(kind):
+        load = Multibody.from_mjcf if kind == "mjcf" else Multibody.from_urdf
+        return load(source), None
+
+
+def _system(t: _Table, folder):
+    kind = t.string("type", choices={"rigid_body", "multibody", "affine_body", "mjcf", "urdf"})
+    if kind == "rigid_body":
+        system, solid = _rigid_body(t)
+        built = system, (None if solid is None else (solid,))
+    elif kind == "multibody":
+        built = _multibody(t)
+    elif kind == "affine_body":
+        built = _affine_body(t)
+    else:
+        built = _model(t, kind, folder)
+    t.done()
+    return built
+
+
+def load_system(path):
+    """A system from a model file: MJCF (`.xml`), URDF (`.urdf`) or a scene file (`.toml`).
+
+    **Arguments:**
+
+    - `path`: the file.
+
+    **Returns:**
+
+    The `AbstractSystem`.
+
+    Raises `SceneFileError` (a `ValueError`) naming the file and the problem.
+    """
+    path = pathlib.Path(path)
+    if not path.is_file():
+        raise SceneFileError(f"{path}: no such file.")
+    suffix = path.suffix.lower()
+    if suffix == ".toml":
+        return SceneFile.load(path).scene.system
+    if suffix not in (".xml", ".urdf"):
+        raise SceneFileError(f"{path}: unknown model format {suffix!r}; use .xml, .urdf or .toml.")
+    table = _Table(path, "", {"path": path.name})
+    return _model(table, "mjcf" if suffix == ".xml" else "urdf", path.parent)[0]
+
+
+# ------------------------------------------------------------------------------- scene
+
+
+def _effect(t: _Table, d):
+    kind = t.string("type", choices={"gravity", "gravity_gradient", "shape_spring", "shape_damper"})
+    with t.building(kind):
+        if kind == "gravity":
+            effect = Gravity(
+                t.number("g", 9.81),
+                t.array("direction", (3,), (0.0, 0.0, -1.0)),
+                gravitational_mass=t.number("gravitational_mass", None),
+                centre_offset=t.array("centre_offset", (3,)) if t.has("centre_offset") else None,
+            )
+        elif kind == "gravity_gradient":
+            effect = GravityGradient(
+                t.number("mu"),
+                t.array("centre", (3,), (0.0, 0.0, 0.0)),
+                per_body=t.boolean("per_body", False),
+            )
+        elif kind == "shape_spring":
+            effect = ShapeSpring(
+                t.vector_or_scalar("stiffness", d), t.vector_or_scalar("rest", d, 0.0)
+            )
+        else:
+            effect = ShapeDamper(t.vector_or_scalar("damping", d))
+    t.done()
+    return effect
+
+
+def _prescribed(t: _Table, d):
+    """$q_k(t) = o_k + a_k \\sin(2\\pi f_k t + \\varphi_k)$, each field a scalar or a d-vector."""
+    amplitude = jnp.asarray(t.vector_or_scalar("amplitude", d))
+    frequency = jnp.asarray(t.vector_or_scalar("frequency", d))
+    phase = jnp.asarray(t.vector_or_scalar("phase", d, 0.0))
+    offset = jnp.asarray(t.vector_or_scalar("offset", d, 0.0))
+
+    def q_of_t(time):
+        return offset + amplitude * jnp.sin(2.0 * jnp.pi * frequency * time + phase)
+
+    return Prescribed(q_of_t)
+
+
+def _frame(t: _Table):
+    kind = t.string("type", "galilean", {"galilean", "boosted", "free_falling"})
+    with t.building(kind):
+        if kind == "boosted":
+            frame = Boosted(t.array("velocity", (3,)))
+        elif kind == "free_falling":
+            frame = FreeFalling(t.number("g", 9.81), t.array("direction", (3,), (0.0, 0.0, -1.0)))
+        else:
+            frame = None
+    t.done()
+    return frame
+
+
+def _state(t: _Table, system, shape, t0):
+    d = system.shape_dim
+    g = np.eye(4)
+    g[:3, :3] = np.asarray(lie.so3_exp(jnp.asarray(t.array("rotation", (3,), (0.0, 0.0, 0.0)))))
+    g[:3, 3] = t.array("position", (3,), (0.0, 0.0, 0.0))
+    if shape is not None:
+        for key in ("q", "qdot"):
+            if t.has(key):
+                raise t.fail(key, "the shape is prescribed: [shape] gives q and qdot.")
+        q, qdot = (np.asarray(x) for x in shape.at(jnp.asarray(t0)))
+    else:
+        q = t.array("q", (d,), np.zeros(d))
+        qdot = t.array("qdot", (d,), np.zeros(d))
+    if t.raw("xi", None) == "zero_momentum":
+        xi = -np.asarray(connection(system, jnp.asarray(q))) @ qdot if d else np.zeros(6)
+    else:
+        xi = t.array("xi", (6,), np.zeros(6))
+    t.done()
+    return State(g, q, xi, qdot)
+
+
+@dataclasses.dataclass(frozen=True)
+class SceneFile:
+    """A simulation read from a TOML scene file: everything `simulate` needs, and the outputs.
+
+    Tables and fields (vectors are TOML lists; a shape vector may be one number, repeated):
+
+    - `[system]` `type` = `"rigid_body"` (`mass`, `centre`, and `solid` = `"box"`
+      (`size`), `"ellipsoid"` (`radii`) or `"capsule"` (`radius`, `length`), or `inertia`:
+      3 moments or 3×3), `"multibody"` (`[[system.bodies]]`: the first is the floating base;
+      each next one has `name`, `parent` (a body name, default the previous body), `joint` =
+      `"revolute"` (`axis`, `anchor`), `"prismatic"` (`axis`), `"universal"` (`axes` 2×3,
+      `anchor`), `"spherical"` (`anchor`) or `"fixed"`, its placement in the parent at q = 0
+      (`offset`, `rotation` vector), and a rigid body's fields), `"affine_body"` (`mass`,
+      `radii` of a solid ellipsoid or `second_moment`), `"mjcf"` or `"urdf"` (`path`
+      relative to the scene file, or `model` = a file in `bundledyn.models`).
+    - `[[effects]]` `type` = `"gravity"` (`g`, `direction`, `gravitational_mass`,
+      `centre_offset`), `"gravity_gradient"` (`mu`, `centre`, `per_body`),
+      `"shape_spring"` (`stiffness`, `rest`) or `"shape_damper"` (`damping`).
+    - `[shape]` `mode` = `"free"` (default) or `"prescribed"`:
+      $q(t) = o + a\\sin(2\\pi f t + \\varphi)$ from `offset`, `amplitude`, `frequency`, `phase`.
+    - `[frame]` `type` = `"galilean"` (default), `"boosted"` (`velocity`) or
+      `"free_falling"` (`g`, `direction`).
+    - `[initial]` `position`, `rotation` (rotation vector), `q`, `qdot`, and `xi` (6 numbers,
+      angular first) or `"zero_momentum"` for $\\xi = -A(q)\\dot q$.
+    - `[time]` `t1` (required), `t0` (0), `saves` (saved times, evenly spaced; 101).
+    - `[solver]` `method` (`RKMK54` default, `RKMK4`, `LieEuler`, `VariationalMidpoint`,
+      `Tsit5`, `Dopri5`, `Dopri8`, `Kvaerno5`), `rtol`, `atol`, `dt0` (required by the
+      fixed-step methods), `max_steps`.
+    - `[output]` `trajectory` (`.npz` name; default the scene's name), `plots` (true),
+      `animation` (false), `frames` (60).
+
+    **Fields:** `path`, `text` (the file as read), `scene`, `state`, `t0`, `t1`, `saves`,
+    `solver`, `options` (keyword arguments of `simulate`), `solids` (one per body, or
+    `None`), `output` (a dict of the `[output]` settings).
+    """
+
+    path: pathlib.Path
+    text: str
+    scene: Scene
+    state: State
+    t0: float
+    t1: float
+    saves: int
+    solver: Any
+    options: dict
+    solids: tuple | None
+    output: dict
+
+    @classmethod
+    def load(cls, path) -> "SceneFile":
+        """Read and check a scene file; raise `SceneFileError` naming the field at fault."""
+        path = pathlib.Path(path)
+        try:
+            text = path.read_text()
+        except OSError as error:
+            raise SceneFileError(f"{path}: cannot read the file ({error.strerror}).") from None
+        try:
+            data = tomllib.loads(text)
+        except tomllib.TOMLDecodeError as error:
+            raise SceneFileError(f"{path}: not valid TOML: {error}.") from None
+        root = _Table(path, "", data)
+        system, solids = _system(root.table("system"), path.parent)
+        d = system.shape_dim
+        effects = tuple(_effect(t, d) for t in root.tables("effects"))
+
+        shape_table = root.table("shape", {})
+        mode = shape_table.string("mode", "free", {"free", "prescribed"})
+        shape = _prescribed(shape_table, d) if mode == "prescribed" else None
+        shape_table.done()
+        frame = _frame(root.table("frame", {}))
+        with root.building("scene"):
+            scene = Scene(system, effects, shape, frame)
+
+        time = root.table("time")
+        t0, t1 = time.number("t0", 0.0), time.number("t1")
+        saves = time.number("saves", 101)
+        if t1 <= t0:
+            raise time.fail("t1", f"must be later than t0 = {t0}.")
+        if saves < 2 or saves != int(saves):
+            raise time.fail("saves", "must be a whole number ≥ 2.")
+        time.done()
+        state = _state(root.table("initial", {}), system, shape, t0)
+
+        solver_table = root.table("solver", {})
+        method = solver_table.string("method", "RKMK54", set(SOLVERS))
+        make, fixed = SOLVERS[method]
+        options = {
+            "rtol": solver_table.number("rtol", 1e-8),
+            "atol": solver_table.number("atol", 1e-8),
+            "max_steps": int(solver_table.number("max_steps", 16384)),
+        }
+        dt0 = solver_table.number("dt0", None) if fixed or solver_table.has("dt0") else None
+        if fixed and dt0 is None:
+            raise solver_table.fail("dt0", f"{method} takes fixed steps: give the step `dt0`.")
+        options["dt0"] = dt0
+        solver_table.done()
+
+        out = root.table("output", {})
+        output = {
+            "trajectory": out.string("trajectory", f"{path.stem}.npz"),
+            "plots": out.boolean("plots", True),
+            "animation": out.boolean("animation", False),
+            "frames": int(out.number("frames", 60)),
+        }
+        if not output["trajectory"].endswith(".npz"):
+            raise out.fail("trajectory", "must be a file name ending in .npz.")
+        out.done()
+        root.done()
+        return cls(path, text, scene, state, t0, t1, int(saves), make(), options, solids, output)
+
+    def simulate(self, *, progress: bool = False, throw: bool = True) -> Trajectory:
+        """Run the scene: `simulate` with the file's solver and options, saving `saves` times.
+
+        **Arguments:**
+
+        - `progress`: show diffrax's progress meter.
+        - `throw`: raise if the solve fails (else read `Trajectory.result`).
+        """
+        ts = jnp.linspace(self.t0, self.t1, self.saves)
+        return simulate(
+            self.scene,
+            self.state,
+            self.t1,
+            t0=self.t0,
+            solver=self.solver,
+            saveat=diffrax.SaveAt(ts=ts),
+            progress=progress,
+            throw=throw,
+            **self.options,
+        )

@@ -1,0 +1,37 @@
+"""Pictures of simulations: diagnostics against time, work–precision diagrams, animations.
+
+Needs matplotlib (`pip install "bundledyn[viz]"`). Every function returns a matplotlib
+`Figure` (shown as a cell's value in Jupyter) and, given `path=`, also writes it; files
+are written whole or not at all. Figures are built without pyplot, so they render
+headless.
+
+- `plot_drift(trajectory)`: energy and spatial momentum minus their initial values.
+- `plot_motion(trajectory)`: shape coordinates, attitude (Euler parameters), position.
+- `plot_work_precision(series)`: error against wall time, one line per method.
+- `animate(trajectory, path)`: the bodies in 3D with the frame's axes and the trail of the
+  centre of mass, as a GIF.
+"""
+
+try:
+    import matplotlib  # noqa: F401
+except ImportError as error:  # pragma: no cover - depends on the environment
+    raise ImportError(
+        "bundledyn.viz needs matplotlib: pip install 'bundledyn[viz]' (or pip install matplotlib)."
+    ) from error
+
+from ._viz._animation import DrawnBody, animate, body_maps, drawn_bodies
+from ._viz._canvas import new_figure, save_figure
+from ._viz._plots import attitude_quaternions, plot_drift, plot_motion, plot_work_precision
+
+__all__ = [
+    "DrawnBody",
+    "animate",
+    "attitude_quaternions",
+    "body_maps",
+    "drawn_bodies",
+    "new_figure",
+    "plot_drift",
+    "plot_motion",
+    "plot_work_precision",
+    "save_figure",
+]

@@ -1,0 +1,139 @@
+"""The command line: `run` writes what a scene file asks for, `check` reports, mistakes exit cleanly."""
+
+import json
+import subprocess
+import sys
+import textwrap
+
+import numpy as np
+import pytest
+from PIL import Image
+
+import bundledyn as bd
+from bundledyn._cli import main
+
+# A torque-free body near its intermediate axis: energy and momentum are conserved.
+DZHANIBEKOV = """
+[system]
+type = "rigid_body"
+mass = 1.0
+solid = "box"
+size = [0.6, 0.4, 0.2]
+
+[initial]
+xi = [0.05, 6.0, 0.05, 0.0, 0.0, 0.0]
+
+[time]
+t1 = 4.0
+saves = 41
+
+[solver]
+rtol = 1e-11
+atol = 1e-13
+
+[output]
+trajectory = "spin.npz"
+animation = true
+frames = 6
+"""
+
+
+@pytest.fixture(scope="module")
+def ran(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("run")
+    scene = folder / "dzhanibekov.toml"
+    scene.write_text(DZHANIBEKOV)
+    out = folder / "out"
+    out.mkdir()
+    return scene, out, main(["run", str(scene), "--out", str(out)])
+
+
+def _picture(path):
+    with Image.open(path) as image:
+        frames = getattr(image, "n_frames", 1)
+        pixels = np.asarray(image.convert("RGB"), dtype=float)
+    assert pixels.std() > 10.0 and len(np.unique(pixels.reshape(-1, 3), axis=0)) > 20
+    return pixels.shape[1], pixels.shape[0], frames
+
+
+def test_run_writes_trajectory_with_its_scene(ran):
+    scene, out, code = ran
+    assert code == 0
+    data = np.load(out / "spin.npz")
+    assert str(data["scene"]) == scene.read_text()
+    metadata = json.loads(str(data["metadata"]))
+    assert metadata["solver"] == "RKMK54" and metadata["bundledyn"] == bd.__version__
+    assert data["g"].shape == (41, 4, 4) and data["q"].shape == (41, 0)
+    np.testing.assert_allclose(data["ts"], np.linspace(0.0, 4.0, 41))
+    # Torque-free: energy and spatial momentum conserved (to the solver's tolerance).
+    energy, momentum = data["energy"], data["spatial_momentum"]
+    assert np.abs(energy - energy[0]).max() < 1e-9 * energy[0]
+    assert np.abs(momentum - momentum[0]).max() < 1e-9 * np.abs(momentum[0]).max()
+    # The intermediate-axis flip happened (the Dzhanibekov effect), so something was simulated.
+    assert data["xi"][:, 1].min() < -5.0
+
+
+def test_run_writes_pictures_of_the_expected_size(ran):
+    _, out, _ = ran
+    assert _picture(out / "spin_motion.png") == (700, 450, 1)
+    assert _picture(out / "spin_drift.png") == (700, 400, 1)
+    assert _picture(out / "spin.gif") == (320, 320, 6)
+    assert sorted(p.name for p in out.iterdir()) == [
+        "spin.gif",
+        "spin.npz",
+        "spin_drift.png",
+        "spin_motion.png",
+    ]
+
+
+def test_bad_scene_exits_with_a_message_and_writes_nothing(tmp_path, capsys):
+    scene = tmp_path / "bad.toml"
+    scene.write_text(DZHANIBEKOV.replace("size = [0.6, 0.4, 0.2]", "size = [0.6, 0.4]"))
+    assert main(["run", str(scene), "--out", str(tmp_path)]) == 2
+    err = capsys.readouterr().err
+    assert "bad.toml" in err and "system.size" in err and "[0.6, 0.4]" in err
+    assert [p.name for p in tmp_path.iterdir()] == ["bad.toml"]
+
+
+def test_failed_solve_exits_and_leaves_no_output(tmp_path, capsys):
+    scene = tmp_path / "short.toml"
+    scene.write_text(DZHANIBEKOV.replace("atol = 1e-13", "atol = 1e-13\nmax_steps = 3"))
+    assert main(["run", str(scene), "--out", str(tmp_path)]) == 1
+    assert "maximum number of solver steps" in capsys.readouterr().err
+    assert [p.name for p in tmp_path.iterdir()] == ["short.toml"]
+
+
+def test_missing_files(tmp_path, capsys):
+    assert main(["run", str(tmp_path / "none.toml")]) == 2
+    assert main(["check", str(tmp_path / "none.xml")]) == 2
+    err = capsys.readouterr().err
+    assert err.count("no such file") == 1 and "cannot read the file" in err
+
+
+def test_demo_summarises_and_checks(tmp_path, capsys):
+    assert main(["demo", "--no-pictures", "--out", str(tmp_path / "demo")]) == 0
+    out = capsys.readouterr().out
+    angle = float(out.split("net rotation after one shape loop: ")[1].split(" deg")[0])
+    assert 10.0 < angle < 180.0
+    assert "PASSED" in out and not (tmp_path / "demo").exists()
+
+
+def test_check_reports_invariance(capsys):
+    # The demo's model and sample count: its compiled check is reused.
+    assert main(["check", str(bd.scenes / "falling_cat.toml"), "--samples", "64"]) == 0
+    out = capsys.readouterr().out
+    assert "on 64 sampled shapes" in out and "PASSED" in out
+
+
+def test_console_script_is_installed_as_a_module():
+    result = subprocess.run(
+        [sys.executable, "-m", "bundledyn", "--help"], capture_output=True, text=True, check=True
+    )
+    assert all(c in result.stdout for c in ("demo", "run", "check"))
+
+
+def test_scene_file_docstring_names_every_solver():
+    doc = textwrap.dedent(bd.SceneFile.__doc__)
+    from bundledyn._scene_file import SOLVERS
+
+    assert all(f"`{name}`" in doc for name in SOLVERS)
