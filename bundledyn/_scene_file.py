@@ -376,8 +376,8 @@ def _state(t: _Table, system, shape, t0):
                 raise t.fail(key, "the shape is prescribed: [shape] gives q and qdot.")
         q, qdot = (np.asarray(x) for x in shape.at(jnp.asarray(t0)))
     else:
-        q = t.array("q", (d,), np.zeros(d))
-        qdot = t.array("qdot", (d,), np.zeros(d))
+        q = t.vector_or_scalar("q", d, 0.0)
+        qdot = t.vector_or_scalar("qdot", d, 0.0)
     if t.raw("xi", None) == "zero_momentum":
         xi = -np.asarray(connection(system, jnp.asarray(q))) @ qdot if d else np.zeros(6)
     else:

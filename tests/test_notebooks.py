@@ -1,0 +1,37 @@
+"""The notebooks run top to bottom, and are committed with their outputs."""
+
+import os
+import pathlib
+
+import nbformat
+import pytest
+from nbclient import NotebookClient
+
+FOLDER = pathlib.Path(__file__).resolve().parents[1] / "notebooks"
+NOTEBOOKS = sorted(p.name for p in FOLDER.glob("*.ipynb"))
+
+
+def test_there_are_notebooks():
+    assert len(NOTEBOOKS) >= 3
+
+
+@pytest.mark.parametrize("name", NOTEBOOKS)
+def test_committed_with_outputs(name):
+    book = nbformat.read(FOLDER / name, as_version=4)
+    code = [c for c in book.cells if c.cell_type == "code"]
+    assert code and all(c.outputs for c in code), "run the notebook and save its outputs"
+    assert not any(o.output_type == "error" for c in code for o in c.outputs)
+
+
+@pytest.mark.parametrize("name", NOTEBOOKS)
+def test_runs_top_to_bottom(name):
+    book = nbformat.read(FOLDER / name, as_version=4)
+    # The kernel imports this checkout's bundledyn, as the tests do.
+    env = dict(
+        os.environ,
+        PYTHONPATH=os.pathsep.join([str(FOLDER.parent), os.environ.get("PYTHONPATH", "")]),
+    )
+    client = NotebookClient(
+        book, timeout=300, kernel_name="python3", resources={"metadata": {"path": str(FOLDER)}}
+    )
+    client.execute(env=env)  # raises CellExecutionError on the first failing cell
