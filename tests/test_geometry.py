@@ -282,3 +282,18 @@ def test_geometry_under_jit_vmap_grad(fn, key):
     fd_mass = central(jnp.zeros((mass.shape[0], q.shape[0])), Em)
     np.testing.assert_allclose(grad_q, fd_q, rtol=1e-6, atol=1e-7)
     np.testing.assert_allclose(grad_mass, fd_mass, rtol=1e-6, atol=1e-7)
+
+
+@pytest.mark.parametrize("name", SYSTEMS)
+def test_metric_derivative_equals_autodiff_of_the_metric(name, key):
+    """`metric_and_derivative` (closed form for trees of bodies) equals jacfwd of `metric`."""
+    system = SYSTEMS[name]()
+
+    @jax.jit
+    @jax.vmap
+    def both(q):
+        return system.metric_and_derivative(q), bd.AbstractSystem.metric_and_derivative(system, q)
+
+    (G, dG), (G_ad, dG_ad) = both(random_shapes(system, key, 16))
+    np.testing.assert_allclose(G, G_ad, rtol=0, atol=1e-13 * np.abs(G_ad).max())
+    np.testing.assert_allclose(dG, dG_ad, rtol=0, atol=1e-12 * max(np.abs(dG_ad).max(initial=0.0), 1.0))
