@@ -19,8 +19,9 @@ def test_there_are_notebooks():
 def test_committed_with_outputs(name):
     book = nbformat.read(FOLDER / name, as_version=4)
     code = [c for c in book.cells if c.cell_type == "code"]
-    assert code and all(c.outputs for c in code), "run the notebook and save its outputs"
-    assert not any(o.output_type == "error" for c in code for o in c.outputs)
+    counts = [c.execution_count for c in code]
+    assert counts == list(range(1, len(code) + 1)), "run it top to bottom and save the outputs"
+    assert code[-1].outputs and not any(o.output_type == "error" for c in code for o in c.outputs)
 
 
 @pytest.mark.parametrize("name", NOTEBOOKS)
