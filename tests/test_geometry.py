@@ -296,4 +296,6 @@ def test_metric_derivative_equals_autodiff_of_the_metric(name, key):
 
     (G, dG), (G_ad, dG_ad) = both(random_shapes(system, key, 16))
     np.testing.assert_allclose(G, G_ad, rtol=0, atol=1e-13 * np.abs(G_ad).max())
-    np.testing.assert_allclose(dG, dG_ad, rtol=0, atol=1e-12 * max(np.abs(dG_ad).max(initial=0.0), 1.0))
+    np.testing.assert_allclose(
+        dG, dG_ad, rtol=0, atol=1e-12 * max(np.abs(dG_ad).max(initial=0.0), 1.0)
+    )
