@@ -55,13 +55,15 @@ class Scene(eqx.Module):
     """
 
     system: AbstractSystem
-    effects: tuple[AbstractEffect, ...]
+    effects: list[AbstractEffect]
     shape: Free | Prescribed
     frame: AbstractFrame | None
 
     def __init__(self, system, effects=(), shape=None, frame=None):
         self.system = system
-        self.effects = tuple(effects)
+        # A list, not a tuple: `equinox.tree_at` (used by diffrax's BacksolveAdjoint on the
+        # solver state, which holds the scene's cotangent) fails on an empty tuple.
+        self.effects = list(effects)
         self.shape = Free() if shape is None else shape
         self.frame = frame
 

@@ -103,6 +103,17 @@ def test_failed_solve_exits_and_leaves_no_output(tmp_path, capsys):
     assert [p.name for p in tmp_path.iterdir()] == ["short.toml"]
 
 
+def test_progress_meter(tmp_path, capsys):
+    scene = tmp_path / "spin.toml"
+    scene.write_text(DZHANIBEKOV.replace("t1 = 4.0", "t1 = 1.0"))
+    assert main(["run", str(scene), "--out", str(tmp_path), "--progress", "--no-pictures"]) == 0
+    out = capsys.readouterr().out
+    assert "100.00%" in out and [p.name for p in sorted(tmp_path.iterdir())] == [
+        "spin.npz",
+        "spin.toml",
+    ]
+
+
 def test_missing_files(tmp_path, capsys):
     assert main(["run", str(tmp_path / "none.toml")]) == 2
     assert main(["check", str(tmp_path / "none.xml")]) == 2
