@@ -710,6 +710,14 @@ def markdown(report):
         f"Measured {env['date']} on {env['machine']}, Python {env['python']}, XLA_FLAGS=`{env['xla_flags']}`.",
         "Versions: " + ", ".join(f"{k} {v}" for k, v in env["versions"].items() if v) + ".",
         "",
+        *(
+            [
+                f"Throughput, gradients and compile times measured {report['extras_environment']['date']} (same machine).",
+                "",
+            ]
+            if "extras_environment" in report
+            else []
+        ),
         "Times are medians of the runs after compilation (min–max in brackets); errors are",
         "the largest deviation of the state at t1 from the reference (see the script's docstring).",
         "",
@@ -767,10 +775,11 @@ def markdown(report):
         rows = report.get(key)
         if not rows:
             continue
-        lines += [f"## {title}", "", "| " + " | ".join(rows[0]) + " |", "|" + "---|" * len(rows[0])]
+        columns = list(dict.fromkeys(k for row in rows for k in row))
+        lines += [f"## {title}", "", "| " + " | ".join(columns) + " |", "|" + "---|" * len(columns)]
         for row in rows:
             cells = []
-            for v in row.values():
+            for v in (row.get(k, "–") for k in columns):
                 if isinstance(v, dict):
                     cells.append(f"{v['median']:.3g} ({v['min']:.3g}–{v['max']:.3g})")
                 elif isinstance(v, float):
