@@ -26,9 +26,9 @@ def _rollout_loss(params, adjoint=None):
     scene = bd.Scene(system, (bd.ShapeSpring(params[9]),))
     state = eqx.tree_at(lambda s: s.xi, THREE_STATE, params[:6])
     if adjoint is None:
-        traj = bd.simulate(scene, state, 1.0, solver=bd.RKMK4(), dt0=0.005)
+        traj = bd.simulate(scene, state, 0.5, solver=bd.RKMK4(), dt0=0.005)
     else:
-        traj = bd.simulate(scene, state, 1.0, rtol=1e-10, atol=1e-10, adjoint=adjoint)
+        traj = bd.simulate(scene, state, 0.5, rtol=1e-10, atol=1e-10, adjoint=adjoint)
     return (
         jnp.sin(jnp.arange(1, 4)) @ traj.q[-1] + traj.g[-1, 0, 3] + 0.1 * traj.xi[-1] @ traj.xi[-1]
     )
