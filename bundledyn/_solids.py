@@ -66,8 +66,7 @@ class Box(AbstractSolid):
         _positive("Box.size", self.size)
 
     def principal_moments(self, mass):
-        s2 = self.size**2
-        return mass / 12.0 * (jnp.sum(s2) - s2)
+        return _moments(mass, self.size**2, 12.0)
 
     def surface(self, resolution=12):
         # The unit cube's surface as one grid: the sphere grid pushed out to the faces.
@@ -81,9 +80,7 @@ class Box(AbstractSolid):
 
         Inverts $I_1 = m(b^2 + c^2)/12$: $a^2 = 6(I_2 + I_3 - I_1)/m$ and cyclic.
         """
-        moments = np.asarray(moments, dtype=float)
-        squares = 6.0 * (np.sum(moments) - 2.0 * moments) / float(mass)
-        return cls(np.sqrt(np.maximum(squares, 1e-12 * np.max(squares))))
+        return cls(_lengths(mass, moments, 12.0))
 
 
 class Ellipsoid(AbstractSolid):
@@ -104,8 +101,7 @@ class Ellipsoid(AbstractSolid):
         _positive("Ellipsoid.radii", self.radii)
 
     def principal_moments(self, mass):
-        r2 = self.radii**2
-        return mass / 5.0 * (jnp.sum(r2) - r2)
+        return _moments(mass, self.radii**2, 5.0)
 
     def surface(self, resolution=12):
         return _sphere(resolution) * np.asarray(self.radii)
@@ -116,9 +112,7 @@ class Ellipsoid(AbstractSolid):
 
         Inverts $I_1 = m(b^2 + c^2)/5$: $a^2 = 5(I_2 + I_3 - I_1)/(2m)$ and cyclic.
         """
-        moments = np.asarray(moments, dtype=float)
-        squares = 2.5 * (np.sum(moments) - 2.0 * moments) / float(mass)
-        return cls(np.sqrt(np.maximum(squares, 1e-12 * np.max(squares))))
+        return cls(_lengths(mass, moments, 5.0))
 
 
 class Capsule(AbstractSolid):
@@ -164,6 +158,18 @@ class Capsule(AbstractSolid):
         points = r * u
         points[..., 0] += np.sign(u[..., 0]) * half  # split the sphere and pull its halves apart
         return points
+
+
+def _moments(mass, squares, divisor):
+    """$I_1 = m(s_2^2 + s_3^2)/k$ and cyclic: the moments of a box ($k = 12$) or ellipsoid ($k = 5$)."""
+    return mass / divisor * (jnp.sum(squares) - squares)
+
+
+def _lengths(mass, moments, divisor):
+    """The lengths $s_i$ that `_moments` turns into `moments`: $s_1^2 = k(I_2 + I_3 - I_1)/(2m)$."""
+    moments = np.asarray(moments, dtype=float)
+    squares = 0.5 * divisor * (np.sum(moments) - 2.0 * moments) / float(mass)
+    return np.sqrt(np.maximum(squares, 1e-12 * np.max(squares)))
 
 
 def _sphere(resolution):

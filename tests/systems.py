@@ -144,3 +144,15 @@ def body_inertia_data(system, q):
     )
     inertia = jnp.sum(jnp.einsum("nij,njk,nlk->nil", R, system.inertia, R) + parallel, axis=0)
     return m, c, inertia
+
+
+def picture_size(path):
+    """`(width, height, frames)` of an image file, after checking it is not blank."""
+    import numpy as np
+    from PIL import Image
+
+    with Image.open(path) as image:
+        frames = getattr(image, "n_frames", 1)
+        pixels = np.asarray(image.convert("RGB"), dtype=float)
+    assert pixels.std() > 10.0 and len(np.unique(pixels.reshape(-1, 3), axis=0)) > 20
+    return pixels.shape[1], pixels.shape[0], frames

@@ -4,19 +4,10 @@ import diffrax
 import jax.numpy as jnp
 import numpy as np
 import pytest
-from PIL import Image
-from systems import affine_body, chain
+from systems import affine_body, chain, picture_size
 
 import bundledyn as bd
 from bundledyn import lie, viz
-
-
-def _picture(path):
-    with Image.open(path) as image:
-        frames = getattr(image, "n_frames", 1)
-        pixels = np.asarray(image.convert("RGB"), dtype=float)
-    assert pixels.std() > 10.0 and len(np.unique(pixels.reshape(-1, 3), axis=0)) > 20
-    return pixels.shape[1], pixels.shape[0], frames
 
 
 @pytest.fixture(scope="module")
@@ -30,7 +21,7 @@ def spin():
 def test_diagnostic_plots(spin, tmp_path):
     fig = viz.plot_drift(spin, path=tmp_path / "drift.png")
     assert len(fig.axes) == 2
-    assert _picture(tmp_path / "drift.png") == (700, 400, 1)
+    assert picture_size(tmp_path / "drift.png") == (700, 400, 1)
     fig = viz.plot_motion(spin, path=tmp_path / "motion.svg")
     assert len(fig.axes) == 2  # a rigid body has no shape panel
     assert (tmp_path / "motion.svg").read_text().lstrip().startswith("<?xml")
@@ -52,12 +43,12 @@ def test_work_precision_diagram(tmp_path):
         "MuJoCo RK4",
         "reference floor",
     ]
-    assert _picture(tmp_path / "wp.png") == (770, 528, 1)
+    assert picture_size(tmp_path / "wp.png") == (770, 528, 1)
 
 
 def test_animation_gif(spin, tmp_path):
     path = viz.animate(spin, tmp_path / "spin.gif", frames=5, size=3.0, dpi=60)
-    assert _picture(path) == (180, 180, 5)
+    assert picture_size(path) == (180, 180, 5)
     assert [p.name for p in tmp_path.iterdir()] == ["spin.gif"]  # no temporary left
 
 

@@ -308,6 +308,11 @@ class Multibody(AbstractSystem):
         $(\\xi, \\dot q)$ to each body's velocity expressed in the section frame, `(n, 6, 6+d)`.
         The body twist is $\\nu_a = \\operatorname{Ad}_{r_a^{-1}} \\hat J_a [\\xi; \\dot q]$.
         """
+        *_, r, Jhat = self._jacobian_parts(q)
+        return r, Jhat
+
+    def _jacobian_parts(self, q):
+        """Node poses, ball nodes, joint columns $Z$, path mask, body poses $r_a$ and $\\hat J_a$."""
         T, screw_nodes, ball_nodes, S_ball = self._node_poses(q)
         T_body = T[np.array(self._tables.body_last)]
         Z = self._shape_columns(q, T, screw_nodes, ball_nodes, S_ball)
@@ -316,19 +321,23 @@ class Multibody(AbstractSystem):
             # Velocities relative to the section body, seen in its frame.
             Z = lie.Ad(lie.se3_inv(T_body[self.section])) @ Z
             mask = mask - mask[self.section]
-        r = self._to_section(T_body)
+        mask = jnp.asarray(mask, q.dtype)
         eye = jnp.broadcast_to(jnp.eye(6, dtype=q.dtype), (self.num_bodies, 6, 6))
-        Jhat = jnp.concatenate([eye, Z[None] * jnp.asarray(mask, q.dtype)[:, None, :]], axis=-1)
-        return r, Jhat
+        Jhat = jnp.concatenate([eye, Z[None] * mask[:, None, :]], axis=-1)
+        return T, ball_nodes, Z, mask, self._to_section(T_body), Jhat
+
+    def _section_inertias(self, r):
+        """$\\tilde M_a = \\operatorname{Ad}_{r_a^{-1}}^T M_a \\operatorname{Ad}_{r_a^{-1}}$: each body's inertia in the section frame."""
+        Ad_inv = lie.Ad(lie.se3_inv(r))
+        return (
+            jnp.swapaxes(Ad_inv, 1, 2) @ spatial_inertia(self.mass, self.com, self.inertia) @ Ad_inv
+        )
 
     def metric(self, q):
         r, Jhat = self.velocity_jacobians(q)
-        M_body = spatial_inertia(self.mass, self.com, self.inertia)
-        Ad_inv = lie.Ad(lie.se3_inv(r))
-        M_section = jnp.swapaxes(Ad_inv, 1, 2) @ M_body @ Ad_inv
         # Σ_a Ĵ_aᵀ M_a Ĵ_a as one matrix product over the stacked rows of all bodies.
         rows = Jhat.reshape(-1, Jhat.shape[-1])
-        return rows.T @ (M_section @ Jhat).reshape(rows.shape)
+        return rows.T @ (self._section_inertias(r) @ Jhat).reshape(rows.shape)
 
     def metric_and_derivative(self, q):
         """$G(q)$ and $\\partial G/\\partial q_k$ in closed form (screw theory, DESIGN §4).
@@ -353,20 +362,13 @@ class Multibody(AbstractSystem):
         """
         if self.section != 0 or self.shape_dim == 0:
             return super().metric_and_derivative(q)
-        t = self._tables
         d = self.shape_dim
-        T, screw_nodes, ball_nodes, S_ball = self._node_poses(q)
-        Z = self._shape_columns(q, T, screw_nodes, ball_nodes, S_ball)
-        mask = jnp.asarray(np.array(t.path_mask).reshape(self.num_bodies, d), q.dtype)
-        eye = jnp.broadcast_to(jnp.eye(6, dtype=q.dtype), (self.num_bodies, 6, 6))
-        Jhat = jnp.concatenate([eye, Z[None] * mask[:, None, :]], axis=-1)
-        Ad_inv = lie.Ad(lie.se3_inv(T[np.array(t.body_last)]))
-        M = jnp.swapaxes(Ad_inv, 1, 2) @ spatial_inertia(self.mass, self.com, self.inertia) @ Ad_inv
-        P = M @ Jhat  # (n, 6, 6+d): each body's momentum map
+        T, ball_nodes, Z, mask, r, Jhat = self._jacobian_parts(q)
+        P = self._section_inertias(r) @ Jhat  # (n, 6, 6+d): each body's momentum map
         G = jnp.einsum("aij,aic->jc", Jhat, P)
 
         ad_Z = lie.ad(Z.T)  # (d, 6, 6)
-        dZ = (ad_Z @ Z) * jnp.asarray(_column_ancestry(t), q.dtype)[:, None, :]
+        dZ = (ad_Z @ Z) * jnp.asarray(_column_ancestry(self._tables), q.dtype)[:, None, :]
         if len(ball_nodes):
             dZ = dZ + self._ball_column_derivative(q, T, ball_nodes)
         # Columns: d/dq_k of Ĵ_a^T P_a through Z (the mask of body a selects column j).
