@@ -127,21 +127,21 @@ class Scene(eqx.Module):
         """
         g, x = y
         q, U, qdot = self.split(t, x)
-        geo = bundle_geometry(self.system, q)
         if self.frame is not None:
             shift, shift_dot, M = self._frame_shift(t, g)
             U, g_true = U + shift, M @ g
         else:
             g_true = g
-        xi = U - geo.A @ qdot if self.system.shape_dim else U
+        geo = bundle_geometry(self.system, q, U, qdot)
+        xi = U - geo.A @ qdot
         F, Q = self.forces(Kinematics(t, g_true, q, xi, qdot))
-        Udot = locked_acceleration(geo, U, qdot, F)
+        Udot = locked_acceleration(geo, F)
         if self.frame is not None:
             xi = xi - shift
             Udot = Udot + lie.bracket(xi, shift) - shift_dot
         gdot = g @ lie.hat(xi)
         if self.free_shape:
-            return gdot, jnp.concatenate([qdot, Udot, shape_acceleration(geo, U, qdot, F, Q)])
+            return gdot, jnp.concatenate([qdot, Udot, shape_acceleration(geo, F, Q)])
         return gdot, Udot
 
     def kinematics(self, t, y) -> Kinematics:

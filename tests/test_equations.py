@@ -36,12 +36,12 @@ def compare_forms(name):
         kin = bd.Kinematics(0.0, g, q, xi, qdot)
         F, Q = scene.forces(kin)
         F, Q = F + F_ext, Q + Q_ext
-        geo = bd.bundle_geometry(system, q)
-        Udot = bd.locked_acceleration(geo, U, qdot, F)
+        geo = bd.bundle_geometry(system, q, U, qdot)
+        Udot = bd.locked_acceleration(geo, F)
         if system.shape_dim:
-            qddot = bd.shape_acceleration(geo, U, qdot, F, Q)
+            qddot = bd.shape_acceleration(geo, F, Q)
             # ξ = U − A q̇  ⇒  ξ̇ = U̇ − (∂_q̇ A) q̇ − A q̈
-            xidot = Udot - jnp.tensordot(qdot, geo.dA, 1) @ qdot - geo.A @ qddot
+            xidot = Udot - geo.dA @ qdot - geo.A @ qddot
         else:
             qddot, xidot = qdot, Udot
         xidot_ref, qddot_ref = bd.reference_accelerations(system, q, xi, qdot, F, Q)

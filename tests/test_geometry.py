@@ -286,16 +286,28 @@ def test_geometry_under_jit_vmap_grad(fn, key):
 
 @pytest.mark.parametrize("name", SYSTEMS)
 def test_metric_derivative_equals_autodiff_of_the_metric(name, key):
-    """`metric_and_derivative` (closed form for trees of bodies) equals jacfwd of `metric`."""
+    """`metric_and_derivative` and the contractions of `metric_jet` (closed forms for trees
+    of bodies) equal jacfwd of `metric`: the derivative along $u$ and the forms $x^T\\partial_k G\\,y$."""
     system = SYSTEMS[name]()
+    d = system.shape_dim
 
     @jax.jit
     @jax.vmap
-    def both(q):
-        return system.metric_and_derivative(q), bd.AbstractSystem.metric_and_derivative(system, q)
+    def both(q, u, x, y):
+        jet = system.metric_jet(q)
+        G_ad, dG_ad = bd.AbstractSystem.metric_and_derivative(system, q)
+        closed = (*system.metric_and_derivative(q), jet.along(u), jet.form(x, y))
+        autodiff = (G_ad, dG_ad, jnp.tensordot(u, dG_ad, 1), jnp.einsum("i,kij,j->k", x, dG_ad, y))
+        return closed, autodiff
 
-    (G, dG), (G_ad, dG_ad) = both(random_shapes(system, key, 16))
-    np.testing.assert_allclose(G, G_ad, rtol=0, atol=1e-13 * np.abs(G_ad).max())
-    np.testing.assert_allclose(
-        dG, dG_ad, rtol=0, atol=1e-12 * max(np.abs(dG_ad).max(initial=0.0), 1.0)
+    k = jax.random.split(key, 4)
+    args = (
+        random_shapes(system, k[0], 16),
+        jax.random.normal(k[1], (16, d)),
+        jax.random.normal(k[2], (16, 6 + d)),
+        jax.random.normal(k[3], (16, 6 + d)),
     )
+    closed, autodiff = both(*args)
+    for value, expected in zip(closed, autodiff, strict=True):
+        scale = max(np.abs(expected).max(initial=0.0), 1.0)
+        np.testing.assert_allclose(value, expected, rtol=0, atol=1e-12 * scale)

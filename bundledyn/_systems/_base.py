@@ -7,6 +7,8 @@ import jax
 import jax.numpy as jnp
 from jaxtyping import Array, Float
 
+from ._metric_jet import AbstractMetricJet, DenseMetricJet
+
 
 class AbstractSystem(eqx.Module):
     """A mechanical system whose configuration space is a principal SE(3) bundle.
@@ -20,7 +22,7 @@ class AbstractSystem(eqx.Module):
 
     Everything else (locked inertia, connection, shape metric, curvature, the equations
     (2.6)–(2.7)) follows from `metric`. Subclasses give `shape_dim` and `metric`; they may
-    override `metric_and_derivative` with a closed form.
+    override `metric_and_derivative` or `metric_jet` with a closed form.
     """
 
     @property
@@ -55,3 +57,16 @@ class AbstractSystem(eqx.Module):
         matrix products). The default is forward-mode autodiff of `metric`.
         """
         return self.metric(q), jnp.moveaxis(jax.jacfwd(self.metric)(q), -1, 0)
+
+    def metric_jet(self, q) -> AbstractMetricJet:
+        """The metric and its first derivative at $q$, for the contractions (2.6)–(2.7) use.
+
+        **Arguments:**
+
+        - `q`: shape coordinates, shape `(d,)`.
+
+        **Returns:**
+
+        An `AbstractMetricJet`; the default stores `metric_and_derivative(q)`.
+        """
+        return DenseMetricJet(*self.metric_and_derivative(q))

@@ -1,6 +1,7 @@
 """Trees of rigid bodies with a floating base, vectorized over bodies."""
 
 import copy
+import functools
 from typing import NamedTuple
 
 import equinox as eqx
@@ -12,6 +13,7 @@ from jaxtyping import Array, Float
 from .. import lie
 from ._base import AbstractSystem
 from ._joints import AbstractJoint
+from ._metric_jet import AbstractMetricJet
 from ._rigid_body import RigidBody, spatial_inertia
 from ._validation import check_shape, concrete
 
@@ -339,8 +341,8 @@ class Multibody(AbstractSystem):
         rows = Jhat.reshape(-1, Jhat.shape[-1])
         return rows.T @ (self._section_inertias(r) @ Jhat).reshape(rows.shape)
 
-    def metric_and_derivative(self, q):
-        """$G(q)$ and $\\partial G/\\partial q_k$ in closed form (screw theory, DESIGN §4).
+    def metric_jet(self, q):
+        """The metric and its derivative contractions in closed form (screw theory, DESIGN §4).
 
         Moving joint $k$ moves every node below it by the twist $Z_k$ (base frame), so
         $\\partial Z_j/\\partial q_k = \\operatorname{ad}_{Z_k} Z_j$ for $j$ at or below $k$ (plus, for a
@@ -348,8 +350,8 @@ class Multibody(AbstractSystem):
         inertia in the base frame $\\tilde M_a = \\operatorname{Ad}_{r_a^{-1}}^T M_a
         \\operatorname{Ad}_{r_a^{-1}}$ changes by
         $-(\\operatorname{ad}_{Z_k}^T \\tilde M_a + \\tilde M_a \\operatorname{ad}_{Z_k})$ when $k$ is on
-        its path. These are the $\\nabla$ terms of (2.6)–(2.7) (seed 004) without autodiff:
-        a few batched products instead of a Jacobian of the whole metric. A section other
+        its path. These are the $\\nabla$ terms of (2.6)–(2.7) (seed 004); see `_TreeMetricJet`
+        for the contractions, which cost about as much as the metric itself. A section other
         than the base uses the autodiff default.
 
         **Arguments:**
@@ -358,26 +360,24 @@ class Multibody(AbstractSystem):
 
         **Returns:**
 
-        `(G, dG)` as in `AbstractSystem.metric_and_derivative`.
+        An `AbstractMetricJet`.
         """
         if self.section != 0 or self.shape_dim == 0:
-            return super().metric_and_derivative(q)
-        d = self.shape_dim
+            return super().metric_jet(q)
         T, ball_nodes, Z, mask, r, Jhat = self._jacobian_parts(q)
-        P = self._section_inertias(r) @ Jhat  # (n, 6, 6+d): each body's momentum map
+        inertias = self._section_inertias(r)
+        P = inertias @ Jhat  # (n, 6, 6+d): each body's momentum map
         G = jnp.einsum("aij,aic->jc", Jhat, P)
+        ball_dZ = self._ball_column_derivative(q, T, ball_nodes) if len(ball_nodes) else None
+        tables = (jnp.asarray(a, q.dtype) for a in _column_tables(self._tables))
+        return _TreeMetricJet(G, Z, Jhat, inertias, P, ball_dZ, *tables)
 
-        ad_Z = lie.ad(Z.T)  # (d, 6, 6)
-        dZ = (ad_Z @ Z) * jnp.asarray(_column_ancestry(self._tables), q.dtype)[:, None, :]
-        if len(ball_nodes):
-            dZ = dZ + self._ball_column_derivative(q, T, ball_nodes)
-        # Columns: d/dq_k of Ĵ_a^T P_a through Z (the mask of body a selects column j).
-        through_columns = jnp.einsum("kij,aj,aic->kjc", dZ, mask, P)
-        D = jnp.zeros((d, 6 + d, 6 + d), q.dtype).at[:, 6:, :].set(through_columns)
-        # Inertias: -Σ_a mask[a,k] (ad_k Ĵ_a)^T P_a, and its transpose.
-        X = -jnp.einsum("ak,kxi,aic,axe->kce", mask, ad_Z, Jhat, P)
-        dG = D + X
-        return G, dG + jnp.swapaxes(dG, 1, 2)
+    def metric_and_derivative(self, q):
+        """$G(q)$ and $\\partial G/\\partial q_k$ in closed form (see `metric_jet`)."""
+        if self.section != 0 or self.shape_dim == 0:
+            return super().metric_and_derivative(q)
+        jet = self.metric_jet(q)
+        return jet.metric, jet.derivative()
 
     def _ball_column_derivative(self, q, T, ball_nodes):
         """$\\operatorname{Ad}_{T} \\partial S_i/\\partial\\varphi_l$ of each ball joint's own columns."""
@@ -414,8 +414,11 @@ class Multibody(AbstractSystem):
         return multibody_from_urdf(path, **kwargs)
 
 
-def _column_ancestry(t: _Tree) -> np.ndarray:
-    """`A[k, j] = 1` where shape column k's node is at or above column j's node in the tree."""
+@functools.cache
+def _column_tables(t: _Tree) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Static relations of shape columns: `path` (n, d), column j moves body a;
+    `at_or_above` (d, d), [k, j] = 1 where k's node is at or above j's node;
+    `strictly_above` (d, d), [j, k] = 1 where j's node is strictly above k's node."""
     width = {"screw": 1, "ball": 3}
     node_of_column = [n for n, kind in enumerate(t.kinds) for _ in range(width.get(kind, 0))]
     A = np.zeros((t.shape_dim, t.shape_dim))
@@ -423,7 +426,63 @@ def _column_ancestry(t: _Tree) -> np.ndarray:
         while node >= 0:
             A[[k for k, m in enumerate(node_of_column) if m == node], j] = 1.0
             node = t.node_parent[node]
-    return A
+    same_node = np.equal.outer(node_of_column, node_of_column)
+    path = np.array(t.path_mask, dtype=float).reshape(-1, t.shape_dim)
+    return path, A, A * ~same_node
+
+
+class _TreeMetricJet(AbstractMetricJet):
+    """The metric jet of a tree of bodies (section at the base), contracted in closed form.
+
+    With $V_a(x) = \\hat J_a x$ each body's twist (base frame) for a velocity $x = [\\xi; \\dot q]$,
+    $N_k(x)$ the twist of joint $k$'s parent node and $\\Pi_k(x) = \\sum_{a \\succeq k} \\tilde M_a V_a(x)$
+    the momentum of the subtree that joint $k$ moves,
+
+    $$x^T \\partial_k G\\, y = -[Z_k, N_k(x)]\\cdot\\Pi_k(y) - [Z_k, N_k(y)]\\cdot\\Pi_k(x)$$
+
+    (plus a ball joint's $\\operatorname{dexp}$ term), which follows from `Multibody.metric_jet`'s
+    derivatives of $Z$ and $\\tilde M_a$ because all terms inside the subtree cancel.
+    """
+
+    metric: Float[Array, "6+d 6+d"]
+    Z: Float[Array, "6 d"]
+    Jhat: Float[Array, "n 6 6+d"]
+    inertias: Float[Array, "n 6 6"]
+    momenta: Float[Array, "n 6 6+d"]
+    ball_dZ: Float[Array, "d 6 d"] | None
+    path: Float[Array, "n d"]
+    at_or_above: Float[Array, "d d"]
+    strictly_above: Float[Array, "d d"]
+
+    def along(self, u):
+        Zu = self.Z * u
+        # ∂_u Z_j = [W_j, Z_j] with W_j the twist of the joints at or above j.
+        dZ = lie.bracket((Zu @ self.at_or_above).T, self.Z.T).T
+        if self.ball_dZ is not None:
+            dZ = dZ + jnp.tensordot(u, self.ball_dZ, 1)
+        # Each body moves by W_a: its Ĵ_a gains -ad(W_a) Ĵ_a besides the change of Z.
+        W_body = (Zu @ self.path.T).T
+        dJhat = dZ[None] * self.path[:, None, :]
+        X = jnp.concatenate([jnp.zeros_like(self.Jhat[..., :6]), dJhat], axis=-1)
+        X = X - lie.ad(W_body) @ self.Jhat
+        half = jnp.einsum("aic,aie->ce", X, self.momenta)
+        return half + half.T
+
+    def _parent_twists_and_subtree_momenta(self, x):
+        Zx = self.Z * x[6:]
+        V_body = x[:6] + (Zx @ self.path.T).T  # (n, 6)
+        N = x[:6] + (Zx @ self.strictly_above).T  # (d, 6)
+        Pi = self.path.T @ (self.inertias @ V_body[..., None])[..., 0]  # (d, 6)
+        return N, Pi
+
+    def form(self, x, y):
+        Nx, Pix = self._parent_twists_and_subtree_momenta(x)
+        Ny, Piy = self._parent_twists_and_subtree_momenta(y)
+        Zk = self.Z.T
+        value = -jnp.sum(lie.bracket(Zk, Nx) * Piy + lie.bracket(Zk, Ny) * Pix, axis=-1)
+        if self.ball_dZ is not None:
+            value = value + jnp.sum((self.ball_dZ @ x[6:]) * Piy + (self.ball_dZ @ y[6:]) * Pix, -1)
+        return value
 
 
 def _unit_screw_exp(S, theta):

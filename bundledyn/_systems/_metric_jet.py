@@ -1,0 +1,57 @@
+"""The metric and its first derivative at one shape, read through the contractions the equations use."""
+
+import abc
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+from jaxtyping import Array, Float
+
+
+class AbstractMetricJet(eqx.Module):
+    """The 1-jet of the metric at a shape $q$: $G(q)$ and the derivatives $\\partial_k G$.
+
+    (2.6)–(2.7) (seed 004) never need the whole tensor $\\partial_k G$, only its contractions
+    with the velocities: the derivative along the shape velocity and a few covectors
+    $k \\mapsto x^T \\partial_k G\\, y$. A system with structure (a tree of bodies) computes
+    these directly, at the cost of the metric, instead of $d$ derivatives of a matrix.
+
+    Subclasses give `metric`, `along` and `form`.
+    """
+
+    metric: eqx.AbstractVar[Float[Array, "6+d 6+d"]]
+
+    @abc.abstractmethod
+    def along(self, u: Float[Array, " d"]) -> Float[Array, "6+d 6+d"]:
+        """$\\partial_u G = \\sum_k u_k\\,\\partial G/\\partial q_k$, the derivative along a shape velocity."""
+
+    @abc.abstractmethod
+    def form(self, x: Float[Array, " 6+d"], y: Float[Array, " 6+d"]) -> Float[Array, " d"]:
+        """The covector $k \\mapsto x^T (\\partial G/\\partial q_k)\\, y$."""
+
+    def derivative(self) -> Float[Array, "d 6+d 6+d"]:
+        """All partial derivatives, `dG[k]` $= \\partial G/\\partial q_k$ (one `along` per coordinate)."""
+        d = self.metric.shape[0] - 6
+        return jax.vmap(self.along)(jnp.eye(d, dtype=self.metric.dtype))
+
+
+class DenseMetricJet(AbstractMetricJet):
+    """A metric jet stored as the full derivative tensor (any system; autodiff by default).
+
+    **Arguments:**
+
+    - `metric`: $G(q)$, shape `(6+d, 6+d)`.
+    - `dG`: `dG[k]` $= \\partial G/\\partial q_k$, shape `(d, 6+d, 6+d)`.
+    """
+
+    metric: Float[Array, "6+d 6+d"]
+    dG: Float[Array, "d 6+d 6+d"]
+
+    def along(self, u):
+        return jnp.tensordot(u, self.dG, 1)
+
+    def form(self, x, y):
+        return (self.dG @ y) @ x
+
+    def derivative(self):
+        return self.dG
