@@ -65,6 +65,7 @@ from ._systems._joints import (
 from ._systems._multibody import Link, Multibody
 from ._systems._rigid_body import RigidBody, spatial_inertia
 from ._trajectory import Trajectory
+from ._xla_flags import CPU_XLA_FLAGS, use_cpu_xla_flags
 
 __version__ = "0.1.0"
 
@@ -80,6 +81,7 @@ __all__ = [
     "AbstractPotential",
     "AbstractSolid",
     "AbstractSystem",
+    "CPU_XLA_FLAGS",
     "AffineBody",
     "Boosted",
     "Box",
@@ -126,6 +128,7 @@ __all__ = [
     "curvature_from_connection",
     "curvature_term",
     "enable_x64",
+    "use_cpu_xla_flags",
     "frame_transport_term",
     "horizontal_lift",
     "inertia_covariant_derivative",

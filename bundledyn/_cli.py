@@ -3,7 +3,6 @@
 import argparse
 import datetime
 import json
-import os
 import pathlib
 import sys
 import time
@@ -211,11 +210,9 @@ def main(argv=None) -> int:
     p.add_argument("--seed", type=int, default=0, help="random seed of the shapes")
     p.set_defaults(run=check)
     args = parser.parse_args(argv)
-    # XLA reads its flags when the backend starts (first computation, not import); the CPU
-    # fusion emitters slow the compilation of these deep, small graphs 2-4x.
-    os.environ.setdefault("XLA_FLAGS", "--xla_cpu_use_fusion_emitters=false")
     import bundledyn as bd
 
+    bd.use_cpu_xla_flags()
     bd.enable_x64()
     try:
         return args.run(args)

@@ -12,7 +12,6 @@ with $\\delta\\xi = \\delta U - A\\,\\delta q$).
 
 from typing import NamedTuple
 
-import jax
 import jax.numpy as jnp
 from jaxtyping import Array, Float
 
@@ -27,12 +26,14 @@ class BundleGeometry(NamedTuple):
     \\partial X/\\partial q_k$; the covectors are the three $q$-gradients (2.6) uses, at fixed
     velocities: `kinetic_gradient` $= \\tfrac12 U^T \\partial_k I_r U$, `transport_gradient`
     $= (I_r U)\\cdot(\\partial_k A)\\dot q$ and `shape_gradient` $= \\dot q^T \\partial_k
-    \\mathcal J_{\\text{def}}\\dot q$. `A[:, j]` is the connection applied to $e_j$.
+    \\mathcal J_{\\text{def}}\\dot q$. `A[:, j]` is the connection applied to $e_j$. `I_r_inv` is
+    `None` for a rigid body ($d = 0$), whose one solve costs less than an inverse.
     """
 
     U: Float[Array, "6"]
     qdot: Float[Array, " d"]
     I_r: Float[Array, "6 6"]
+    I_r_inv: Float[Array, "6 6"] | None
     A: Float[Array, "6 d"]
     J_def: Float[Array, "d d"]
     dI_r: Float[Array, "6 6"]
@@ -66,7 +67,7 @@ def bundle_geometry(system: AbstractSystem, q, U, qdot) -> BundleGeometry:
         G = system.metric(q)
         zero, none = jnp.zeros((6, 6), G.dtype), jnp.zeros((0,), G.dtype)
         return BundleGeometry(
-            U, qdot, G, G[:, :0], G[:0, :0], zero, G[:, :0], G[:0, :0], none, none, none
+            U, qdot, G, None, G[:, :0], G[:0, :0], zero, G[:, :0], G[:0, :0], none, none, none
         )
     jet = system.metric_jet(q)
     G, dG = jet.metric, jet.along(qdot)
@@ -79,19 +80,20 @@ def bundle_geometry(system: AbstractSystem, q, U, qdot) -> BundleGeometry:
     dA = I_inv @ (dB - dI_r @ A)
     x = jnp.concatenate([U, jnp.zeros_like(qdot)])
     w = jnp.concatenate([-A @ qdot, qdot])
-    forms = jax.vmap(jet.form)(jnp.stack([x, x, w]), jnp.stack([x, w, w]))
+    forms = jet.forms(jnp.stack([x, w]))
     return BundleGeometry(
         U,
         qdot,
         I_r,
+        I_inv,
         A,
         M - B.T @ A,
         dI_r,
         dA,
         dM - dB.T @ A - B.T @ dA,
-        0.5 * forms[0],
-        forms[1],
-        forms[2],
+        0.5 * forms[0, 0],
+        forms[0, 1],
+        forms[1, 1],
     )
 
 
@@ -169,9 +171,10 @@ def locked_acceleration(geo: BundleGeometry, wrench) -> Float[Array, "6"]:
     - `wrench`: $F_b$, the total wrench on the section frame (section axes, angular first).
     """
     rhs = wrench - coadjoint_term(geo)
-    if geo.qdot.shape[0]:
-        rhs = rhs - inertia_covariant_derivative(geo) @ geo.U + frame_transport_term(geo)
-    return jnp.linalg.solve(geo.I_r, rhs)
+    if geo.I_r_inv is None:
+        return jnp.linalg.solve(geo.I_r, rhs)
+    rhs = rhs - inertia_covariant_derivative(geo) @ geo.U + frame_transport_term(geo)
+    return geo.I_r_inv @ rhs
 
 
 def shape_acceleration(geo: BundleGeometry, wrench, shape_force) -> Float[Array, " d"]:

@@ -1,8 +1,5 @@
 import os
 
-# XLA's CPU fusion emitters make these small, deep graphs compile 2-4x slower (measured in
-# benchmarks/); the flag must be set before JAX initializes its backend.
-os.environ.setdefault("XLA_FLAGS", "--xla_cpu_use_fusion_emitters=false")
 # One on-disk compilation cache for the run: both xdist workers and the notebooks' kernels
 # (which inherit the environment) compile many of the same functions, e.g. the falling cat.
 os.environ.setdefault(
@@ -15,6 +12,10 @@ os.environ.setdefault(
 import jax  # noqa: E402
 import pytest  # noqa: E402
 
+import bundledyn as bd  # noqa: E402
+
+# XLA reads its flags when the backend starts: before any test computes (see benchmarks/).
+bd.use_cpu_xla_flags()
 jax.config.update("jax_enable_x64", True)
 
 

@@ -13,11 +13,13 @@ well, except at its symmetric shape $q = 0$, where (c) alone fails.
 
 import equinox as eqx
 import jax.numpy as jnp
+import numpy as np
 from jaxtyping import Array, Float
 
 from .._systems._generic import GenericSystem
 
-_ROTATIONAL_INERTIA = jnp.array([[0.4, 0.02, 0.0], [0.02, 0.5, -0.03], [0.0, -0.03, 0.7]])
+# NumPy, not JAX: importing bundledyn must not start JAX's backend (`use_cpu_xla_flags`).
+_ROTATIONAL_INERTIA = np.array([[0.4, 0.02, 0.0], [0.02, 0.5, -0.03], [0.0, -0.03, 0.7]])
 
 
 def _rotational(xi):

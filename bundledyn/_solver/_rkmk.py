@@ -67,7 +67,7 @@ class AbstractRKMK(AbstractSolver):
       step and after `made_jump`.
     - Dense output: `LieLocalInterpolation`, the tableau's continuous extension in the
       chart $g_0\exp\hat\Theta$, which stays on the group.
-    - The stages run in a `lax.scan`, so the vector field is traced once per solver.
+    - Stages 2 to s run in a `lax.scan`, so the vector field is traced twice per solver.
 
     Valid while the rotation part of the algebra increments stays below $2\pi$
     (where $\mathrm{dexp}^{-1}$ is singular); an adaptive controller keeps it far below.
@@ -103,26 +103,32 @@ class AbstractRKMK(AbstractSolver):
             f_prev = None
             reuse = None
 
-        def stage(carry, i):
-            kappas, ks, _ = carry
+        def evaluate(i, kappas, ks, stored=None):
+            """Stage i's increments; with `stored`, FSAL's first stage is reused when possible."""
             omega = _combine(a[i], kappas)
             deltas = [_combine(a[i], k) for k in ks]
             ti = t0 + c[i] * (t1 - t0)
             yi = from_chart(g0, rest0, treedef, omega, deltas)
             vf = lambda: terms.vf(ti, yi, args)
-            # FSAL: stage 1 of this step is the stored last stage of the previous one.
-            fi = lax.cond((i == 0) & reuse, lambda: f_prev, vf) if tab.fsal else vf()
+            fi = vf() if stored is None else lax.cond(reuse, lambda: stored, vf)
             gi, _, _ = split(yi)
             kg, *kx = jtu.tree_leaves(terms.prod(fi, control))
             eta = twist_of_tangent(gi, kg).astype(omega.dtype)
             kappa = matmul(lie.se3_dexp_inv(omega), eta)
             kappas = kappas.at[i].set(kappa)
             ks = [k.at[i].set(kxi.astype(k.dtype)) for k, kxi in zip(ks, kx, strict=True)]
-            return (kappas, ks, fi if tab.fsal else None), None
+            return kappas, ks, fi
+
+        def stage(carry, i):
+            kappas, ks, _ = carry
+            return evaluate(i, kappas, ks), None
 
         kappas0 = jnp.zeros((s, 6), dtype=g0.dtype)
         ks0 = [jnp.zeros((s, *jnp.shape(x)), dtype=jnp.result_type(x)) for x in rest0]
-        (kappas, ks, f_last), _ = lax.scan(stage, (kappas0, ks0, f_prev), jnp.arange(s), length=s)
+        # The first stage sits outside the scan: a `lax.cond` inside the loop body costs
+        # more than the vector field itself on the CPU (its operands are copied per stage).
+        first = evaluate(0, kappas0, ks0, f_prev if tab.fsal else None)
+        (kappas, ks, f_last), _ = lax.scan(stage, first, jnp.arange(1, s), length=s - 1)
 
         b = jnp.asarray(tab.b_sol, dtype=dtype)
         y1 = from_chart(g0, rest0, treedef, _combine(b, kappas), [_combine(b, k) for k in ks])

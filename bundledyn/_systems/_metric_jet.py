@@ -13,10 +13,10 @@ class AbstractMetricJet(eqx.Module):
 
     (2.6)–(2.7) (seed 004) never need the whole tensor $\\partial_k G$, only its contractions
     with the velocities: the derivative along the shape velocity and a few covectors
-    $k \\mapsto x^T \\partial_k G\\, y$. A system with structure (a tree of bodies) computes
+    $k \\mapsto x^T \\partial_k G\\, y$ (`along`, `forms`). A system with structure (a tree of bodies) computes
     these directly, at the cost of the metric, instead of $d$ derivatives of a matrix.
 
-    Subclasses give `metric`, `along` and `form`.
+    Subclasses give `metric`, `along` and `forms`.
     """
 
     metric: eqx.AbstractVar[Float[Array, "6+d 6+d"]]
@@ -26,8 +26,17 @@ class AbstractMetricJet(eqx.Module):
         """$\\partial_u G = \\sum_k u_k\\,\\partial G/\\partial q_k$, the derivative along a shape velocity."""
 
     @abc.abstractmethod
-    def form(self, x: Float[Array, " 6+d"], y: Float[Array, " 6+d"]) -> Float[Array, " d"]:
-        """The covector $k \\mapsto x^T (\\partial G/\\partial q_k)\\, y$."""
+    def forms(self, X: Float[Array, "m 6+d"]) -> Float[Array, "m m d"]:
+        """The covectors $k \\mapsto x_i^T (\\partial G/\\partial q_k)\\, x_j$ of every pair of velocities.
+
+        **Arguments:**
+
+        - `X`: $m$ velocities $x_i = [\\xi_i; \\dot q_i]$ as rows.
+
+        **Returns:**
+
+        `F[i, j, k]` $= x_i^T \\partial_k G\\, x_j$, symmetric in `i, j`.
+        """
 
     def derivative(self) -> Float[Array, "d 6+d 6+d"]:
         """All partial derivatives, `dG[k]` $= \\partial G/\\partial q_k$ (one `along` per coordinate)."""
@@ -50,8 +59,8 @@ class DenseMetricJet(AbstractMetricJet):
     def along(self, u):
         return jnp.tensordot(u, self.dG, 1)
 
-    def form(self, x, y):
-        return (self.dG @ y) @ x
+    def forms(self, X):
+        return jnp.einsum("ia,kab,jb->ijk", X, self.dG, X)
 
     def derivative(self):
         return self.dG

@@ -468,21 +468,16 @@ class _TreeMetricJet(AbstractMetricJet):
         half = jnp.einsum("aic,aie->ce", X, self.momenta)
         return half + half.T
 
-    def _parent_twists_and_subtree_momenta(self, x):
-        Zx = self.Z * x[6:]
-        V_body = x[:6] + (Zx @ self.path.T).T  # (n, 6)
-        N = x[:6] + (Zx @ self.strictly_above).T  # (d, 6)
-        Pi = self.path.T @ (self.inertias @ V_body[..., None])[..., 0]  # (d, 6)
-        return N, Pi
-
-    def form(self, x, y):
-        Nx, Pix = self._parent_twists_and_subtree_momenta(x)
-        Ny, Piy = self._parent_twists_and_subtree_momenta(y)
-        Zk = self.Z.T
-        value = -jnp.sum(lie.bracket(Zk, Nx) * Piy + lie.bracket(Zk, Ny) * Pix, axis=-1)
+    def forms(self, X):
+        Zx = self.Z[None] * X[:, None, 6:]  # (m, 6, d)
+        V_body = X[:, None, :6] + jnp.swapaxes(Zx @ self.path.T, 1, 2)  # (m, n, 6)
+        N = X[:, None, :6] + jnp.swapaxes(Zx @ self.strictly_above, 1, 2)  # (m, d, 6)
+        Pi = self.path.T @ jnp.einsum("aij,maj->mai", self.inertias, V_body)  # (m, d, 6)
+        ZN = lie.bracket(self.Z.T, N)  # [Z_k, N_k(x_i)]
         if self.ball_dZ is not None:
-            value = value + jnp.sum((self.ball_dZ @ x[6:]) * Piy + (self.ball_dZ @ y[6:]) * Pix, -1)
-        return value
+            ZN = ZN - jnp.einsum("kxj,mj->mkx", self.ball_dZ, X[:, 6:])
+        half = -jnp.einsum("ikx,jkx->ijk", ZN, Pi)
+        return half + jnp.swapaxes(half, 0, 1)
 
 
 def _unit_screw_exp(S, theta):

@@ -1,0 +1,41 @@
+"""XLA's CPU settings for small, deep graphs: opt-in, like float64."""
+
+import os
+import warnings
+
+CPU_XLA_FLAGS = ("--xla_cpu_use_fusion_emitters=false", "--xla_cpu_multi_thread_eigen=false")
+
+
+def use_cpu_xla_flags() -> bool:
+    """Add bundledyn's XLA CPU flags to `XLA_FLAGS`, before JAX starts its backend.
+
+    - `--xla_cpu_use_fusion_emitters=false`: XLA's CPU fusion emitters compile the small,
+      deep graphs of kinematic trees 1.5–4× slower (`benchmarks/results/speed.md`).
+    - `--xla_cpu_multi_thread_eigen=false`: the 6×6 and $d\\times d$ products of one
+      vector field are far too small to share between threads; handing each to Eigen's
+      thread pool roughly doubled their cost (large `jax.vmap` batches: see the
+      benchmark, which measures both settings).
+
+    A flag already present in `XLA_FLAGS` (either value) is left as the user set it. XLA
+    reads the variable once, when the first computation starts the backend; called later,
+    this changes nothing and warns.
+
+    **Returns:**
+
+    `True` if the flags will take effect, `False` if the backend had already started.
+    """
+    from jax._src import xla_bridge
+
+    if xla_bridge.backends_are_initialized():
+        warnings.warn(
+            "bundledyn.use_cpu_xla_flags() was called after JAX started its backend, so XLA "
+            "will not read the flags; call it before the first JAX computation, or set "
+            f"XLA_FLAGS='{' '.join(CPU_XLA_FLAGS)}' in the environment.",
+            stacklevel=2,
+        )
+        return False
+    flags = os.environ.get("XLA_FLAGS", "").split()
+    names = {flag.split("=")[0] for flag in flags}
+    flags += [flag for flag in CPU_XLA_FLAGS if flag.split("=")[0] not in names]
+    os.environ["XLA_FLAGS"] = " ".join(flags)
+    return True
