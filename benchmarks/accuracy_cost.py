@@ -49,7 +49,7 @@ import jax.numpy as jnp  # noqa: E402
 import numpy as np  # noqa: E402
 
 import bundledyn as bd  # noqa: E402
-from benchmarks.speed_scaling import chain_scene  # noqa: E402
+from benchmarks.speed import chain_scene  # noqa: E402
 from bundledyn import lie  # noqa: E402
 
 jax.config.update("jax_enable_x64", True)

@@ -19,3 +19,18 @@ def test_accuracy_cost_quick_writes_its_report(tmp_path):
     assert "| RKMK54 |" in (tmp_path / "accuracy_cost_quick.md").read_text()
     png = (tmp_path / "accuracy_cost_dzhanibekov.png").read_bytes()
     assert png[:8] == b"\x89PNG\r\n\x1a\n" and len(png) > 10_000
+
+
+def test_speed_report_redraws_from_its_json(tmp_path):
+    """The committed speed results are self-consistent: `--report-only` rebuilds the same
+    markdown from the JSON, and every target row states whether it was met."""
+    from benchmarks import speed
+
+    (tmp_path / "speed.json").write_bytes((speed.RESULTS / "speed.json").read_bytes())
+    speed.main(["--report-only", "--out", str(tmp_path)])
+    text = (tmp_path / "speed.md").read_text()
+    assert text == (speed.RESULTS / "speed.md").read_text()
+    report = json.loads((tmp_path / "speed.json").read_text())
+    rows = speed.targets(report)
+    assert len(rows) >= 10 and all(isinstance(met, bool) for *_, met in rows)
+    assert all(f"| {what} |" in text for what, *_ in rows)

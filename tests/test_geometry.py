@@ -296,7 +296,11 @@ def test_metric_derivative_equals_autodiff_of_the_metric(name, key):
     def both(q, u, x, y):
         jet = system.metric_jet(q)
         G_ad, dG_ad = bd.AbstractSystem.metric_and_derivative(system, q)
-        closed = (*system.metric_and_derivative(q), jet.along(u), jet.form(x, y))
+        closed = (
+            *system.metric_and_derivative(q),
+            jet.along(u),
+            jet.forms(jnp.stack([x, y]))[0, 1],
+        )
         autodiff = (G_ad, dG_ad, jnp.tensordot(u, dG_ad, 1), jnp.einsum("i,kij,j->k", x, dG_ad, y))
         return closed, autodiff
 

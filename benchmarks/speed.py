@@ -1,0 +1,822 @@
+"""Speed against MuJoCo, measured in one run on the same MJCF model.
+
+Systems: free-floating chains of n boxes joined by hinges with alternating axes, no gravity
+and no forces, written once as MJCF (`chain_mjcf`) and loaded by both MuJoCo and bundledyn
+(`bd.Multibody.from_mjcf`). float64 on the CPU. Every time is the median, min and max over
+`--repeats` runs (≥ 5 for the published results).
+
+1. **Vector field**: one evaluation of `scene.vector_field` inside a compiled `fori_loop`
+   (no dispatch), against MuJoCo's `mj_forward` (Python loop over the C call) and one RK4
+   step (`mujoco.rollout`, a C loop), for n = 1, 5, 10, 20.
+2. **10 s of the 5-body chain**: bundledyn's default solver (RKMK54) swept over tolerances
+   and MuJoCo RK4 over time steps, errors against a reference (RKMK54 at rtol 1e-13,
+   checked against diffrax's Dopri8); wall time interpolated (log–log) at the error of
+   MuJoCo RK4 with dt = 1e-2 and at 1e-10.
+3. **Batches**: `jax.vmap` of 1 s rollouts over 1024 initial states at the tolerance that
+   matches MuJoCo RK4 dt = 1e-2 in part 2, against `mujoco.rollout` on 2 threads (and MJX
+   when `mujoco.mjx` is installed).
+4. **Compile times** of `simulate` (n = 5, 20) and of its `jax.grad` (n = 20).
+5. **Gradients**: `jax.grad` of a loss on the 10 s rollout over the forward solve; peak
+   memory of the gradient of a 10⁵-step rollout (RKMK4, fixed step, checkpointed).
+
+Parts 1, 3 and 4 run twice, in fresh worker processes: with XLA's defaults and with
+`bundledyn.CPU_XLA_FLAGS` (XLA reads its flags when the backend starts).
+
+Usage, from the repository root (needs the `bench` extra for MuJoCo)::
+
+    python -m benchmarks.speed                 # full run; writes results/speed.{md,json}
+    python -m benchmarks.speed --quick         # small sizes, 2 repeats, prints only
+    python -m benchmarks.speed --report-only   # redraw the markdown from the JSON
+"""
+
+import argparse
+import datetime
+import json
+import os
+import pathlib
+import platform
+import resource
+import statistics
+import subprocess
+import sys
+import time
+
+ROOT = pathlib.Path(__file__).resolve().parents[1]
+RESULTS = ROOT / "benchmarks" / "results"
+T_CHAIN = 10.0
+MUJOCO_DT = 1e-2
+TARGET_ERROR = 1e-10
+LOOP_EVALS = 1000
+BATCH = 1024
+MEMORY_STEPS = 100_000
+
+
+# ------------------------------------------------------------------------------- models
+
+
+def chain_mjcf(n: int) -> str:
+    """MJCF of a free chain of n boxes (hinges alternate y and z), gravity off."""
+    bodies = ""
+    for i in reversed(range(n)):
+        mass, b = 1.0 + 0.3 * i, 0.1 + 0.02 * i
+        a, c = 0.5, 0.08
+        inertia = [
+            mass / 12 * (b * b + c * c),
+            mass / 12 * (a * a + c * c),
+            mass / 12 * (a * a + b * b),
+        ]
+        joint = (
+            '<freejoint name="root"/>'
+            if i == 0
+            else f'<joint type="hinge" axis="{"0 0 1" if i % 2 else "0 1 0"}" pos="-0.25 0 0"/>'
+        )
+        inner = bodies
+        bodies = (
+            f'<body name="b{i}" pos="{0.5 if i else 0.0} 0 0">{joint}'
+            f'<inertial pos="{0.02 * i} 0.01 0" mass="{mass}" '
+            f'diaginertia="{inertia[0]} {inertia[1]} {inertia[2]}"/>{inner}</body>'
+        )
+    return (
+        '<mujoco><option gravity="0 0 0" timestep="0.01" integrator="RK4"/>'
+        f"<worldbody>{bodies}</worldbody></mujoco>"
+    )
+
+
+def chain_scene(n: int):
+    """The bundledyn scene of `chain_mjcf(n)`."""
+    import bundledyn as bd
+
+    return bd.Scene(bd.Multibody.from_mjcf(chain_mjcf(n)))
+
+
+def initial_state(scene):
+    """A tumbling state: bent shape, base twist and joint rates all non-zero."""
+    import jax.numpy as jnp
+
+    import bundledyn as bd
+
+    k = jnp.arange(scene.system.shape_dim, dtype=float)
+    xi = jnp.array([0.3, -0.2, 0.5, 0.1, 0.0, -0.1])
+    return bd.State(jnp.eye(4), 0.3 * jnp.sin(k + 1.0), xi, 0.5 * jnp.cos(k))
+
+
+# ------------------------------------------------------------------------------- timing
+
+
+def summary(samples):
+    return {"median": statistics.median(samples), "min": min(samples), "max": max(samples)}
+
+
+def timed(fn, *args, repeats):
+    """`(output, compile s, summary of run s)`; compile = first call minus the median run."""
+    import jax
+
+    start = time.perf_counter()
+    out = jax.block_until_ready(fn(*args))
+    first = time.perf_counter() - start
+    runs = []
+    for _ in range(repeats):
+        start = time.perf_counter()
+        out = jax.block_until_ready(fn(*args))
+        runs.append(time.perf_counter() - start)
+    return out, max(first - statistics.median(runs), 0.0), summary(runs)
+
+
+def scaled(stats, factor):
+    return {k: v * factor for k, v in stats.items()}
+
+
+# ------------------------------------------------------------------------------- MuJoCo
+
+
+def mujoco_model(n, dt=MUJOCO_DT):
+    import mujoco
+
+    model = mujoco.MjModel.from_xml_string(chain_mjcf(n))
+    model.opt.timestep = dt
+    return model
+
+
+def mujoco_initial(model, scene, state):
+    """MuJoCo's full physics state for bundledyn's `state` (same model, same motion)."""
+    import mujoco
+    import numpy as np
+
+    from bundledyn._systems._mujoco import mujoco_from_state
+
+    s = state
+    qpos, qvel = mujoco_from_state(scene.system, s.g, s.q, s.xi, s.qdot, qpos0=model.qpos0)
+    data = mujoco.MjData(model)
+    data.qpos[:], data.qvel[:] = np.asarray(qpos), np.asarray(qvel)
+    mujoco.mj_forward(model, data)
+    spec = mujoco.mjtState.mjSTATE_FULLPHYSICS
+    initial = np.empty(mujoco.mj_stateSize(model, spec))
+    mujoco.mj_getState(model, data, initial, spec)
+    return data, initial
+
+
+def mujoco_field_and_step(n, repeats, calls=2000):
+    """Seconds per `mj_forward` (Python loop over the C call) and per RK4 step (C loop)."""
+    import mujoco
+    from mujoco import rollout
+
+    scene = chain_scene(n)
+    model = mujoco_model(n)
+    data, initial = mujoco_initial(model, scene, initial_state(scene))
+    forward = []
+    for _ in range(repeats):
+        start = time.perf_counter()
+        for _ in range(calls):
+            mujoco.mj_forward(model, data)
+        forward.append((time.perf_counter() - start) / calls)
+    steps = []
+    rollout.rollout(model, data, initial[None], nstep=calls)
+    for _ in range(repeats):
+        start = time.perf_counter()
+        rollout.rollout(model, data, initial[None], nstep=calls)
+        steps.append((time.perf_counter() - start) / calls)
+    return {"mj_forward": summary(forward), "rk4_step": summary(steps)}
+
+
+def mujoco_final_state(n, dt, t1, scene, state, repeats):
+    """MuJoCo RK4 from `state` to `t1` with step `dt`: final state in bundledyn's variables."""
+    from mujoco import rollout
+
+    from bundledyn._systems._mujoco import state_from_mujoco
+
+    model = mujoco_model(n, dt)
+    data, initial = mujoco_initial(model, scene, state)
+    nstep = round(t1 / dt)
+    runs = []
+    for _ in range(repeats + 1):
+        start = time.perf_counter()
+        states, _ = rollout.rollout(model, data, initial[None], nstep=nstep)
+        runs.append(time.perf_counter() - start)
+    end = states[0, -1]
+    qpos, qvel = end[1 : 1 + model.nq], end[1 + model.nq : 1 + model.nq + model.nv]
+    final = state_from_mujoco(scene.system, qpos, qvel, qpos0=model.qpos0)
+    return final, summary(runs[1:])
+
+
+def mujoco_batch(n, batch, t1, dt, repeats, threads=2):
+    """Instance-steps per second of `mujoco.rollout` over `batch` states on `threads` threads."""
+    import mujoco
+    import numpy as np
+    from mujoco import rollout
+
+    scene = chain_scene(n)
+    model = mujoco_model(n, dt)
+    _, initial = mujoco_initial(model, scene, initial_state(scene))
+    rng = np.random.default_rng(0)
+    initials = np.repeat(initial[None], batch, axis=0)
+    vel = slice(1 + model.nq, 1 + model.nq + 6)
+    initials[:, vel] += 0.05 * rng.standard_normal((batch, 6))
+    datas = [mujoco.MjData(model) for _ in range(threads)]
+    nstep = round(t1 / dt)
+    runs = []
+    for _ in range(repeats + 1):
+        start = time.perf_counter()
+        rollout.rollout(model, datas, initials, nstep=nstep, persistent_pool=True)
+        runs.append(time.perf_counter() - start)
+    t = statistics.median(runs[1:])
+    return {
+        "time": summary(runs[1:]),
+        "instance_steps_per_second": batch * nstep / t,
+        "rollouts_per_second": batch / t,
+        "threads": threads,
+        "steps": nstep,
+    }
+
+
+def mjx_batch(n, batch, t1, dt, repeats):
+    """MJX (MuJoCo in JAX) on the same batch, if `mujoco.mjx` is installed; else None."""
+    try:
+        from mujoco import mjx
+    except ImportError:
+        return None
+    import jax
+    import jax.numpy as jnp
+
+    model = mjx.put_model(mujoco_model(n, dt))
+    nstep = round(t1 / dt)
+
+    @jax.jit
+    def run(qvel):
+        def one(v):
+            data = mjx.make_data(model).replace(qvel=v)
+            return jax.lax.fori_loop(0, nstep, lambda _, d: mjx.step(model, d), data).qpos
+
+        return jax.vmap(one)(qvel)
+
+    qvel = 0.05 * jax.random.normal(jax.random.key(0), (batch, model.nv))
+    _, compiled, runs = timed(run, jnp.asarray(qvel), repeats=repeats)
+    return {
+        "time": runs,
+        "compile": compiled,
+        "instance_steps_per_second": batch * nstep / runs["median"],
+    }
+
+
+# ------------------------------------------------------------------------------- bundledyn
+
+
+def field_cost(n, repeats):
+    """Seconds per vector-field evaluation inside a compiled loop (each depends on the last)."""
+    import jax
+
+    from bundledyn._simulate import initial_condition
+
+    scene = chain_scene(n)
+    y = initial_condition(scene, initial_state(scene), 0.0)
+
+    def body(i, y):
+        dy = scene.vector_field(1e-6 * i, y, None)
+        return jax.tree.map(lambda a, b: a + 1e-6 * b, y, dy)
+
+    loop = jax.jit(lambda y: jax.lax.fori_loop(0, LOOP_EVALS, body, y))
+    _, compiled, runs = timed(loop, y, repeats=repeats)
+    return {"per_evaluation": scaled(runs, 1 / LOOP_EVALS), "compile": compiled}
+
+
+def rollout_fn(scene, t1, **options):
+    """A jitted `(state, rtol) -> (final state, steps)` of `bd.simulate`, atol = rtol / 100.
+
+    RKMK54 unless `options` names a solver; the tolerance is traced, so a sweep compiles once.
+    """
+    import jax
+
+    import bundledyn as bd
+
+    @jax.jit
+    def run(state, rtol):
+        traj = bd.simulate(
+            scene, state, t1, rtol=rtol, atol=rtol * 1e-2, max_steps=200_000, **options
+        )
+        return (traj.g[-1], traj.q[-1], traj.xi[-1], traj.qdot[-1]), traj.stats["num_steps"]
+
+    return run
+
+
+def state_error(a, b):
+    import jax.numpy as jnp
+
+    from bundledyn import lie
+
+    g, *rest = a
+    g_ref, *rest_ref = b
+    parts = [jnp.max(jnp.abs(lie.se3_log(lie.se3_inv(g_ref) @ g)))]
+    parts += [jnp.max(jnp.abs(x - y), initial=0.0) for x, y in zip(rest, rest_ref, strict=True)]
+    return float(jnp.max(jnp.stack(parts)))
+
+
+def time_at_error(points, target):
+    """Log–log interpolated time at `target` error over (error, time) points; None outside."""
+    import numpy as np
+
+    pts = sorted(((p["error"], p["time"]["median"]) for p in points), key=lambda x: -x[0])
+    for (e0, t0), (e1, t1) in zip(pts, pts[1:], strict=False):
+        if e1 <= target <= e0 and e1 < e0:
+            w = np.log(target / e0) / np.log(e1 / e0)
+            return float(np.exp(np.log(t0) + w * np.log(t1 / t0)))
+    return None
+
+
+def setting_at_error(points, target):
+    """The loosest sweep setting whose error is at most `target`."""
+    ok = [p for p in points if p["error"] <= target]
+    return max(ok, key=lambda p: p["error"])["setting"] if ok else None
+
+
+def chain_ten_seconds(repeats, quick):
+    """Part 2: RKMK54 and MuJoCo RK4 on 10 s of the 5-body chain, errors vs a reference."""
+    import diffrax
+
+    scene = chain_scene(5)
+    state = initial_state(scene)
+    t1 = 2.0 if quick else T_CHAIN
+    run = rollout_fn(scene, t1)
+    ref, _ = run(state, 1e-13)
+    check, _ = rollout_fn(scene, t1, solver=diffrax.Dopri8())(state, 1e-13)
+    rows = {
+        "t1": t1,
+        "reference_agreement": state_error(ref, check),
+        "RKMK54": [],
+        "MuJoCo RK4": [],
+    }
+    rtols = (1e-4, 1e-7, 1e-10) if quick else tuple(10.0**-k for k in range(3, 13))
+    for rtol in rtols:
+        (final, steps), compiled, runs = timed(run, state, rtol, repeats=repeats)
+        rows["RKMK54"].append(
+            {
+                "setting": rtol,
+                "error": state_error(final, ref),
+                "steps": int(steps),
+                "time": runs,
+                "compile": compiled,
+            }
+        )
+        print(
+            f"  RKMK54 rtol={rtol:.0e} error={rows['RKMK54'][-1]['error']:.1e} "
+            f"time={runs['median'] * 1e3:.1f} ms",
+            flush=True,
+        )
+    dts = (1e-2, 2.5e-3) if quick else tuple(MUJOCO_DT / 2**k for k in range(6))
+    for dt in dts:
+        final, runs = mujoco_final_state(5, dt, t1, scene, state, repeats)
+        rows["MuJoCo RK4"].append(
+            {"setting": dt, "error": state_error(final, ref), "steps": round(t1 / dt), "time": runs}
+        )
+        print(
+            f"  MuJoCo RK4 dt={dt:.2e} error={rows['MuJoCo RK4'][-1]['error']:.1e} "
+            f"time={runs['median'] * 1e3:.1f} ms",
+            flush=True,
+        )
+    return rows
+
+
+def batch_throughput(rtol, t1, repeats):
+    """Part 3: `jax.vmap` of `BATCH` rollouts of the 5-body chain."""
+    import jax
+
+    import bundledyn as bd
+
+    scene = chain_scene(5)
+    s = initial_state(scene)
+
+    @jax.jit
+    def batch(xi):
+        def one(x):
+            traj = bd.simulate(
+                scene, bd.State(s.g, s.q, x, s.qdot), t1, rtol=rtol, atol=rtol * 1e-2
+            )
+            return traj.g[-1], traj.stats["num_steps"]
+
+        return jax.vmap(one)(xi)
+
+    xi = s.xi + 0.05 * jax.random.normal(jax.random.key(0), (BATCH, 6))
+    (_, steps), compiled, runs = timed(batch, xi, repeats=repeats)
+    return {
+        "time": runs,
+        "compile": compiled,
+        "rollouts_per_second": BATCH / runs["median"],
+        "mean_steps": float(steps.mean()),
+    }
+
+
+def compile_costs(ns, t1=1.0):
+    """Part 4: tracing + XLA compile time of `simulate` (and `jax.grad` for the last n)."""
+    import jax
+    import jax.numpy as jnp
+
+    import bundledyn as bd
+
+    rows = {}
+    for n in ns:
+        scene = chain_scene(n)
+        state = initial_state(scene)
+
+        def loss(xi, scene=scene, state=state):
+            s = state
+            traj = bd.simulate(scene, bd.State(s.g, s.q, xi, s.qdot), t1, rtol=1e-6, atol=1e-8)
+            return jnp.sum(traj.g[-1, :3, 3] ** 2)
+
+        rows[str(n)] = {"simulate": _compile_seconds(jax.jit(loss), state.xi)}
+        if n == ns[-1]:
+            rows[str(n)]["grad"] = _compile_seconds(jax.jit(jax.grad(loss)), state.xi)
+        print(f"  compile n={n}: {rows[str(n)]}", flush=True)
+    return rows
+
+
+def _compile_seconds(jitted, *args):
+    start = time.perf_counter()
+    lowered = jitted.lower(*args)
+    traced = time.perf_counter() - start
+    lowered.compile()
+    return {
+        "trace_and_lower": traced,
+        "xla": time.perf_counter() - start - traced,
+        "total": time.perf_counter() - start,
+    }
+
+
+def gradient_cost(repeats, t1):
+    """Part 5a: `jax.grad` of a loss on the rollout over the forward solve (checkpointed)."""
+    import jax
+    import jax.numpy as jnp
+
+    import bundledyn as bd
+
+    scene = chain_scene(5)
+    s = initial_state(scene)
+
+    def loss(xi):
+        traj = bd.simulate(scene, bd.State(s.g, s.q, xi, s.qdot), t1, rtol=1e-6, atol=1e-8)
+        return jnp.sum(traj.g[-1, :3, 3] ** 2) + jnp.sum(traj.q[-1] ** 2)
+
+    _, _, forward = timed(jax.jit(loss), s.xi, repeats=repeats)
+    _, compiled, grad = timed(jax.jit(jax.grad(loss)), s.xi, repeats=repeats)
+    return {
+        "forward": forward,
+        "grad": grad,
+        "grad_compile": compiled,
+        "ratio": grad["median"] / forward["median"],
+    }
+
+
+def gradient_memory(steps):
+    """Part 5b (own process): peak memory of `jax.grad` through a `steps`-step rollout."""
+    import diffrax
+    import jax
+    import jax.numpy as jnp
+
+    import bundledyn as bd
+
+    scene = chain_scene(5)
+    s = initial_state(scene)
+    dt = 1e-4
+
+    def loss(xi):
+        traj = bd.simulate(
+            scene,
+            bd.State(s.g, s.q, xi, s.qdot),
+            steps * dt,
+            dt0=dt,
+            solver=bd.RKMK4(),
+            max_steps=steps,
+            adjoint=diffrax.RecursiveCheckpointAdjoint(),
+        )
+        return jnp.sum(traj.g[-1, :3, 3] ** 2) + jnp.sum(traj.q[-1] ** 2)
+
+    before = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024
+    compiled = jax.jit(jax.grad(loss)).lower(s.xi).compile()
+    analysis = compiled.memory_analysis()
+    start = time.perf_counter()
+    grad = jax.block_until_ready(compiled(s.xi))
+    seconds = time.perf_counter() - start
+    peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024
+    return {
+        "steps": steps,
+        "xla_temp_bytes": getattr(analysis, "temp_size_in_bytes", None),
+        "peak_rss_bytes": peak,
+        "rss_before_bytes": before,
+        "seconds": seconds,
+        "grad_finite": bool(jnp.all(jnp.isfinite(grad))),
+    }
+
+
+# ------------------------------------------------------------------------------- workers
+
+
+def worker(ns, repeats, rtol, batch_t1):
+    """Parts 1, 3 and 4 under this process's XLA flags."""
+    import bundledyn as bd
+
+    bd.enable_x64()
+    out = {"xla_flags": os.environ.get("XLA_FLAGS", ""), "field": {}}
+    for n in ns:
+        out["field"][str(n)] = field_cost(n, repeats)
+        print(
+            f"  field n={n}: {out['field'][str(n)]['per_evaluation']['median'] * 1e6:.1f} us",
+            file=sys.stderr,
+            flush=True,
+        )
+    out["batch"] = batch_throughput(rtol, batch_t1, repeats)
+    out["compile"] = compile_costs(tuple(dict.fromkeys((5, ns[-1]))))
+    return out
+
+
+def run_worker(mode, args, flags):
+    env = dict(os.environ, XLA_FLAGS=" ".join(flags))
+    command = [sys.executable, "-m", "benchmarks.speed", f"--{mode}", *args]
+    done = subprocess.run(command, env=env, cwd=ROOT, stdout=subprocess.PIPE, check=True, text=True)
+    return json.loads(done.stdout.strip().splitlines()[-1])
+
+
+def environment():
+    import importlib.metadata as md
+
+    versions = {}
+    for package in ("bundledyn", "jax", "jaxlib", "diffrax", "equinox", "numpy", "mujoco"):
+        try:
+            versions[package] = md.version(package)
+        except md.PackageNotFoundError:
+            versions[package] = None
+    cpu = platform.processor() or platform.machine()
+    try:
+        lines = pathlib.Path("/proc/cpuinfo").read_text().splitlines()
+        cpu = next(line.split(":", 1)[1].strip() for line in lines if line.startswith("model name"))
+    except (OSError, StopIteration):
+        pass
+    return {
+        "date": datetime.datetime.now(datetime.UTC).strftime("%Y-%m-%d %H:%M UTC"),
+        "machine": f"{cpu}, {len(os.sched_getaffinity(0))} cores",
+        "loadavg": os.getloadavg(),
+        "python": platform.python_version(),
+        "versions": versions,
+    }
+
+
+# ------------------------------------------------------------------------------- report
+
+
+def targets(report):
+    """Each target of the speed issue: (what, measured, limit, met)."""
+    ours = report["settings"]["bundledyn"]
+    fields, mj = ours["field"], report["mujoco_field"]
+    rows = []
+    for n in fields:
+        ratio = fields[n]["per_evaluation"]["median"] / mj[n]["mj_forward"]["median"]
+        rows.append((f"vector field / mj_forward, n = {n}", ratio, 5.0))
+    ns = list(fields)
+    growth = fields[ns[-1]]["per_evaluation"]["median"] / fields[ns[1]]["per_evaluation"]["median"]
+    rows.append((f"field cost growth n = {ns[1]} → {ns[-1]}", growth, int(ns[-1]) / int(ns[1])))
+    chain = report["chain"]
+    mj_coarse = chain["MuJoCo RK4"][0]
+    t_bd = time_at_error(chain["RKMK54"], mj_coarse["error"])
+    if t_bd is not None:
+        rows.append(
+            (
+                f"10 s chain at MuJoCo RK4 dt = 1e-2 error ({mj_coarse['error']:.1e}): "
+                "RKMK54 / MuJoCo time",
+                t_bd / mj_coarse["time"]["median"],
+                1.0,
+            )
+        )
+    t_bd, t_mj = (time_at_error(chain[m], TARGET_ERROR) for m in ("RKMK54", "MuJoCo RK4"))
+    if t_bd is not None and t_mj is not None:
+        rows.append(("10 s chain at error 1e-10: RKMK54 / MuJoCo RK4 time", t_bd / t_mj, 0.5))
+    mjb = report["mujoco_batch"]
+    rows.append(
+        (
+            f"batch {BATCH}: MuJoCo rollout (2 threads) / bundledyn vmap rollouts per s",
+            mjb["rollouts_per_second"] / ours["batch"]["rollouts_per_second"],
+            1.0,
+        )
+    )
+    if report.get("mjx_batch"):
+        rows.append(
+            (
+                "batch: MJX / bundledyn rollouts per s (× 10)",
+                10
+                * report["mjx_batch"]["instance_steps_per_second"]
+                / mjb["steps"]
+                / ours["batch"]["rollouts_per_second"],
+                1.0,
+            )
+        )
+    last = ns[-1]
+    rows.append(
+        (f"compile simulate, n = {last} [s]", ours["compile"][last]["simulate"]["total"], 10.0)
+    )
+    rows.append(
+        (
+            f"compile jax.grad(simulate), n = {last} [s]",
+            ours["compile"][last]["grad"]["total"],
+            30.0,
+        )
+    )
+    rows.append(("jax.grad / forward, 10 s rollout", report["gradient"]["ratio"], 4.0))
+    memory = report["memory"]
+    rows.append(
+        (f"gradient memory, {memory['steps']:.0e} steps [GB]", memory["peak_rss_bytes"] / 1e9, 2.0)
+    )
+    return [(what, value, limit, value <= limit) for what, value, limit in rows]
+
+
+def fmt(stats, scale, digits=3):
+    return f"{stats['median'] * scale:.{digits}g} ({stats['min'] * scale:.{digits}g}–{stats['max'] * scale:.{digits}g})"
+
+
+def markdown(report):
+    env = report["environment"]
+    settings = report["settings"]
+    lines = [
+        "# Speed against MuJoCo",
+        "",
+        f"Measured {env['date']} on {env['machine']} (load average at start "
+        + ", ".join(f"{x:.2f}" for x in env["loadavg"])
+        + f"), Python {env['python']}; "
+        + ", ".join(f"{k} {v}" for k, v in env["versions"].items() if v)
+        + f". {report['repeats']} repeats; times are median (min–max). Same MJCF model "
+        "(`benchmarks/speed.py: chain_mjcf`) in both simulators, float64, CPU.",
+        "",
+        "## Targets",
+        "",
+        "| target | measured | limit | met | by how much |",
+        "|---|--:|--:|:-:|--:|",
+    ]
+    for what, value, limit, met in targets(report):
+        miss = "" if met else f"{value / limit:.2g}× over"
+        lines.append(f"| {what} | {value:.3g} | {limit:.3g} | {'yes' if met else 'no'} | {miss} |")
+    lines += [
+        "",
+        "## 1. One vector-field evaluation [µs]",
+        "",
+        "| n | bundledyn, CPU_XLA_FLAGS | bundledyn, XLA defaults | mj_forward | MuJoCo RK4 step "
+        "| ratio to mj_forward |",
+        "|--:|--:|--:|--:|--:|--:|",
+    ]
+    for n, mj in report["mujoco_field"].items():
+        ours = settings["bundledyn"]["field"][n]["per_evaluation"]
+        default = settings["xla_defaults"]["field"][n]["per_evaluation"]
+        lines.append(
+            f"| {n} | {fmt(ours, 1e6)} | {fmt(default, 1e6)} | {fmt(mj['mj_forward'], 1e6)} "
+            f"| {fmt(mj['rk4_step'], 1e6)} | {ours['median'] / mj['mj_forward']['median']:.2g} |"
+        )
+    chain = report["chain"]
+    lines += [
+        "",
+        f"## 2. {chain['t1']:g} s of the 5-body chain",
+        "",
+        f"Reference: RKMK54 at rtol 1e-13; diffrax Dopri8 at rtol 1e-13 agrees to "
+        f"{chain['reference_agreement']:.1e}. Error: max over the pose (log of the relative "
+        "pose), q, ξ and q̇ at t1.",
+        "",
+        "| method | setting | steps | error | time [ms] |",
+        "|---|--:|--:|--:|--:|",
+    ]
+    for method in ("RKMK54", "MuJoCo RK4"):
+        for p in chain[method]:
+            label = f"rtol {p['setting']:.0e}" if method == "RKMK54" else f"dt {p['setting']:.3g}"
+            lines.append(
+                f"| {method} | {label} | {p['steps']} | {p['error']:.2e} | {fmt(p['time'], 1e3)} |"
+            )
+    mjb = report["mujoco_batch"]
+    lines += [
+        "",
+        f"## 3. Batches of {BATCH} (5-body chain, 1 s)",
+        "",
+        f"bundledyn: `jax.vmap(simulate)` at rtol {report['batch_rtol']:.0e}, the loosest "
+        "tolerance at least as accurate as MuJoCo RK4 with dt = 1e-2 over 10 s (part 2). "
+        f"MuJoCo: `mujoco.rollout`, RK4, dt = 1e-2, {mjb['threads']} threads.",
+        "",
+        "| simulator | time per batch [s] | rollouts/s | instance-steps/s |",
+        "|---|--:|--:|--:|",
+    ]
+    for key, label in (
+        ("bundledyn", "bundledyn, CPU_XLA_FLAGS"),
+        ("xla_defaults", "bundledyn, XLA defaults"),
+    ):
+        b = settings[key]["batch"]
+        lines.append(
+            f"| {label} | {fmt(b['time'], 1)} | {b['rollouts_per_second']:.3g} "
+            f"| {b['rollouts_per_second'] * b['mean_steps']:.3g} (adaptive, {b['mean_steps']:.0f} steps each) |"
+        )
+    lines.append(
+        f"| MuJoCo rollout | {fmt(mjb['time'], 1)} | {mjb['rollouts_per_second']:.3g} "
+        f"| {mjb['instance_steps_per_second']:.3g} |"
+    )
+    mjx = report.get("mjx_batch")
+    if mjx:
+        lines.append(
+            f"| MJX | {fmt(mjx['time'], 1)} | {mjx['instance_steps_per_second'] / mjb['steps']:.3g} "
+            f"| {mjx['instance_steps_per_second']:.3g} |"
+        )
+    else:
+        lines += [
+            "",
+            "MJX was not measured: `mujoco.mjx` is not installed here (`mujoco-mjx` has "
+            "no release for this MuJoCo version).",
+        ]
+    lines += [
+        "",
+        "## 4. Compile times [s] (tracing and lowering + XLA)",
+        "",
+        "| n | what | CPU_XLA_FLAGS | XLA defaults |",
+        "|--:|---|--:|--:|",
+    ]
+    for n, row in settings["bundledyn"]["compile"].items():
+        for what, c in row.items():
+            d = settings["xla_defaults"]["compile"][n][what]
+            lines.append(
+                f"| {n} | {what} | {c['trace_and_lower']:.1f} + {c['xla']:.1f} "
+                f"| {d['trace_and_lower']:.1f} + {d['xla']:.1f} |"
+            )
+    g, m = report["gradient"], report["memory"]
+    lines += [
+        "",
+        "## 5. Gradients",
+        "",
+        f"- `jax.grad` of a loss on the {chain['t1']:g} s rollout (RecursiveCheckpointAdjoint): "
+        f"{fmt(g['grad'], 1e3)} ms against {fmt(g['forward'], 1e3)} ms forward, "
+        f"ratio {g['ratio']:.2f}.",
+        f"- {m['steps']} RKMK4 steps, gradient through all of them: peak process memory "
+        f"{m['peak_rss_bytes'] / 1e9:.2f} GB (XLA temporary buffers "
+        f"{(m['xla_temp_bytes'] or 0) / 1e6:.0f} MB), {m['seconds']:.1f} s, gradient finite: "
+        f"{m['grad_finite']}.",
+    ]
+    return "\n".join(lines) + "\n"
+
+
+def main(argv=None):
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--quick", action="store_true", help="small sizes, 2 repeats, no files")
+    parser.add_argument("--repeats", type=int, help="timed repeats (default 5; quick 2)")
+    parser.add_argument("--out", type=pathlib.Path, default=RESULTS, help="results folder")
+    parser.add_argument(
+        "--report-only", action="store_true", help="redraw speed.md from speed.json"
+    )
+    parser.add_argument("--worker", nargs=4, help=argparse.SUPPRESS)
+    parser.add_argument("--memory", nargs=1, help=argparse.SUPPRESS)
+    args = parser.parse_args(argv)
+    repeats = args.repeats or (2 if args.quick else 5)
+    if args.worker:
+        ns, rtol, t1 = [int(n) for n in args.worker[0].split(",")], *map(float, args.worker[2:])
+        print(json.dumps(worker(ns, int(args.worker[1]), rtol, t1)))
+        return 0
+    if args.memory:
+        import bundledyn as bd
+
+        bd.enable_x64()
+        print(json.dumps(gradient_memory(int(args.memory[0]))))
+        return 0
+    if args.report_only:
+        report = json.loads((args.out / "speed.json").read_text())
+        (args.out / "speed.md").write_text(markdown(report))
+        return 0
+
+    import bundledyn as bd
+
+    bd.use_cpu_xla_flags()
+    bd.enable_x64()
+    try:
+        import mujoco  # noqa: F401
+    except ImportError:
+        print("mujoco is not installed (pip install '.[bench]'): nothing to compare against")
+        return 1
+    ns = (1, 2, 5) if args.quick else (1, 5, 10, 20)
+    report = {"environment": environment(), "repeats": repeats, "quick": args.quick}
+    print("part 2: chain", flush=True)
+    report["chain"] = chain_ten_seconds(repeats, args.quick)
+    coarse = report["chain"]["MuJoCo RK4"][0]["error"]
+    report["batch_rtol"] = setting_at_error(report["chain"]["RKMK54"], coarse) or 1e-6
+    batch_t1 = 0.2 if args.quick else 1.0
+    print("part 1: MuJoCo", flush=True)
+    report["mujoco_field"] = {str(n): mujoco_field_and_step(n, repeats) for n in ns}
+    report["mujoco_batch"] = mujoco_batch(5, BATCH, batch_t1, MUJOCO_DT, repeats)
+    report["mjx_batch"] = mjx_batch(5, BATCH, batch_t1, MUJOCO_DT, repeats)
+    print("part 5: gradients", flush=True)
+    report["gradient"] = gradient_cost(repeats, report["chain"]["t1"])
+    steps = 1000 if args.quick else MEMORY_STEPS
+    report["memory"] = run_worker("memory", [str(steps)], bd.CPU_XLA_FLAGS)
+    report["settings"] = {}
+    for key, flags in (("bundledyn", bd.CPU_XLA_FLAGS), ("xla_defaults", ())):
+        print(f"parts 1, 3, 4 with {key}", flush=True)
+        worker_args = [
+            ",".join(map(str, ns)),
+            str(repeats),
+            str(report["batch_rtol"]),
+            str(batch_t1),
+        ]
+        report["settings"][key] = run_worker("worker", worker_args, flags)
+    text = markdown(report)
+    print(text)
+    if not args.quick:
+        args.out.mkdir(parents=True, exist_ok=True)
+        (args.out / "speed.json").write_text(json.dumps(report, indent=1) + "\n")
+        (args.out / "speed.md").write_text(text)
+    return report
+
+
+if __name__ == "__main__":
+    main()
