@@ -237,7 +237,7 @@ class Method:
 METHODS = {
     "LieEuler": Method("LieEuler", bd.LieEuler, True, 1, "Lie group"),
     "RKMK4": Method("RKMK4", bd.RKMK4, True, 4, "Lie group"),
-    "RKMK54": Method("RKMK54", bd.RKMK54, False, 6, "Lie group"),
+    "RKMK54": Method("RKMK54", bd.RKMK54, False, 7, "Lie group"),
     "VariationalMidpoint": Method(
         "VariationalMidpoint", bd.VariationalMidpoint, True, 8, "Lie group"
     ),

@@ -24,7 +24,6 @@ read off the field as $\xi_i = (g_i^{-1}\dot g_i)^\vee$; matrices are never adde
 
 from typing import ClassVar
 
-import equinox.internal as eqxi
 import jax.lax as lax
 import jax.numpy as jnp
 import jax.tree_util as jtu
@@ -61,13 +60,13 @@ class AbstractRKMK(AbstractSolver):
       `atol + rtol * |g|`: for the rotation block this is a tolerance on angles (radians,
       entered twice, as $\pm\omega_k$), for the translation column a tolerance on lengths
       (the body-frame translation increment); the bottom row and the diagonal are zero.
-    - If the tableau is FSAL (its last stage is evaluated at the propagated solution), the
-      raw vector-field value at $(t_1, y_1)$ is carried in the solver state and reused as
-      the next step's first stage (where $\Omega = 0$); it is recomputed on the first
-      step and after `made_jump`.
+    - Every stage is evaluated, FSAL tableaus included, inside one `lax.scan`, so the
+      vector field is traced once. Reusing an FSAL tableau's last stage needs a `lax.cond`
+      (or a second trace of the field outside the loop): on XLA's CPU the first cost more
+      per step than the evaluation it saves, the second nearly doubled the compile time of
+      `jax.grad` through `simulate` (5-body chain: 48 s against 27 s).
     - Dense output: `LieLocalInterpolation`, the tableau's continuous extension in the
       chart $g_0\exp\hat\Theta$, which stays on the group.
-    - Stages 2 to s run in a `lax.scan`, so the vector field is traced twice per solver.
 
     Valid while the rotation part of the algebra increments stays below $2\pi$
     (where $\mathrm{dexp}^{-1}$ is singular); an adaptive controller keeps it far below.
@@ -79,8 +78,6 @@ class AbstractRKMK(AbstractSolver):
 
     def init(self, terms, t0, t1, y0, args):
         split(y0)  # validate the state layout early
-        if self.tableau.fsal:
-            return jnp.array(True), eqxi.eval_zero(self.func, terms, t0, y0, args)
         return None
 
     def func(self, terms, t0, y0, args):
@@ -95,40 +92,23 @@ class AbstractRKMK(AbstractSolver):
         a = jnp.asarray(tab.a, dtype=dtype)
         c = jnp.asarray(tab.c_full, dtype=dtype)
 
-        if tab.fsal:
-            first_step, f_prev = solver_state
-            # Unbatched under vmap, so that the `lax.cond` below stays a real branch.
-            reuse = jnp.logical_not(eqxi.unvmap_any(first_step | jnp.asarray(made_jump)))
-        else:
-            f_prev = None
-            reuse = None
-
-        def evaluate(i, kappas, ks, stored=None):
-            """Stage i's increments; with `stored`, FSAL's first stage is reused when possible."""
+        def stage(carry, i):
+            kappas, ks = carry
             omega = _combine(a[i], kappas)
             deltas = [_combine(a[i], k) for k in ks]
-            ti = t0 + c[i] * (t1 - t0)
             yi = from_chart(g0, rest0, treedef, omega, deltas)
-            vf = lambda: terms.vf(ti, yi, args)
-            fi = vf() if stored is None else lax.cond(reuse, lambda: stored, vf)
+            fi = terms.vf(t0 + c[i] * (t1 - t0), yi, args)
             gi, _, _ = split(yi)
             kg, *kx = jtu.tree_leaves(terms.prod(fi, control))
             eta = twist_of_tangent(gi, kg).astype(omega.dtype)
             kappa = matmul(lie.se3_dexp_inv(omega), eta)
             kappas = kappas.at[i].set(kappa)
             ks = [k.at[i].set(kxi.astype(k.dtype)) for k, kxi in zip(ks, kx, strict=True)]
-            return kappas, ks, fi
-
-        def stage(carry, i):
-            kappas, ks, _ = carry
-            return evaluate(i, kappas, ks), None
+            return (kappas, ks), None
 
         kappas0 = jnp.zeros((s, 6), dtype=g0.dtype)
         ks0 = [jnp.zeros((s, *jnp.shape(x)), dtype=jnp.result_type(x)) for x in rest0]
-        # The first stage sits outside the scan: a `lax.cond` inside the loop body costs
-        # more than the vector field itself on the CPU (its operands are copied per stage).
-        first = evaluate(0, kappas0, ks0, f_prev if tab.fsal else None)
-        (kappas, ks, f_last), _ = lax.scan(stage, first, jnp.arange(1, s), length=s - 1)
+        (kappas, ks), _ = lax.scan(stage, (kappas0, ks0), jnp.arange(s), length=s)
 
         b = jnp.asarray(tab.b_sol, dtype=dtype)
         y1 = from_chart(g0, rest0, treedef, _combine(b, kappas), [_combine(b, k) for k in ks])
@@ -143,8 +123,7 @@ class AbstractRKMK(AbstractSolver):
         d = jnp.asarray(tab.dense, dtype=dtype)
         coeffs = jtu.tree_unflatten(treedef, [_combine(d, kappas)] + [_combine(d, k) for k in ks])
         dense_info = dict(y0=y0, coeffs=coeffs)
-        new_state = (jnp.array(False), f_last) if tab.fsal else None
-        return y1, y_error, dense_info, new_state, RESULTS.successful
+        return y1, y_error, dense_info, None, RESULTS.successful
 
 
 class RKMK4(AbstractRKMK):
@@ -191,9 +170,9 @@ class RKMK54(AbstractRKMK, AbstractAdaptiveSolver):
 
     The default adaptive Lie-group solver. Fifth order, with an embedded fourth-order
     error estimate measured in the Lie algebra (see `AbstractRKMK`), so it works with
-    `diffrax.PIDController`. Seven stages, FSAL (six vector-field evaluations per
-    accepted step). Dense output: the fourth-order quartic of `diffrax.Dopri5`, applied
-    in the algebra chart, so it stays on the group.
+    `diffrax.PIDController`. Seven stages, all evaluated every step (see `AbstractRKMK`
+    for why the FSAL stage is not reused). Dense output: the fourth-order quartic of
+    `diffrax.Dopri5`, applied in the algebra chart, so it stays on the group.
 
     ??? cite "References"
 
