@@ -740,9 +740,10 @@ def markdown(report):
         f"- `jax.grad` of a loss on the {chain['t1']:g} s rollout (RecursiveCheckpointAdjoint): "
         f"{fmt(g['grad'], 1e3)} ms against {fmt(g['forward'], 1e3)} ms forward, "
         f"ratio {g['ratio']:.2f}.",
-        f"- {m['steps']} RKMK4 steps, gradient through all of them: peak process memory "
-        f"{m['peak_rss_bytes'] / 1e9:.2f} GB (XLA temporary buffers "
-        f"{(m['xla_temp_bytes'] or 0) / 1e6:.0f} MB), {m['seconds']:.1f} s, gradient finite: "
+        f"- {m['steps']} RKMK4 steps, gradient through all of them: peak memory of the whole "
+        f"process {m['peak_rss_bytes'] / 1e9:.2f} GB ({m['rss_before_bytes'] / 1e9:.2f} GB "
+        "before compiling the gradient: imports and JAX's runtime), XLA temporary buffers "
+        f"{(m['xla_temp_bytes'] or 0) / 1e6:.2f} MB, {m['seconds']:.1f} s, gradient finite: "
         f"{m['grad_finite']}.",
     ]
     return "\n".join(lines) + "\n"

@@ -10,13 +10,13 @@ def use_cpu_xla_flags() -> bool:
     """Add bundledyn's XLA CPU flags to `XLA_FLAGS`, before JAX starts its backend.
 
     - `--xla_cpu_use_fusion_emitters=false`: XLA's CPU fusion emitters compile the small,
-      deep graphs of kinematic trees more slowly (XLA time of `jax.grad` of a 20-body
-      rollout: 37 s with XLA's defaults, 27 s with these flags).
+      deep graphs of kinematic trees more slowly (XLA's part of compiling `jax.grad` of a
+      20-body rollout: 19.6 s with XLA's defaults, 14.8 s with these flags).
     - `--xla_cpu_multi_thread_eigen=false`: the 6×6 and $d\\times d$ products of one
       vector field are far too small to share between threads.
 
-    Measured together against XLA's defaults (`benchmarks/results/speed.md`): one 20-body
-    vector field 1.7× faster, 1024 vmapped rollouts 1.9× faster, a rigid body's field 2.4×.
+    Measured together against XLA's defaults (`benchmarks/results/speed.md`): one vector
+    field 1.2–2× faster (1 to 20 bodies), 1024 vmapped rollouts 2.5× faster.
 
     A flag already present in `XLA_FLAGS` (either value) is left as the user set it. XLA
     reads the variable once, when the first computation starts the backend; called later,
