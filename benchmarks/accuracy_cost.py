@@ -49,8 +49,12 @@ import jax.numpy as jnp  # noqa: E402
 import numpy as np  # noqa: E402
 
 import bundledyn as bd  # noqa: E402
-from benchmarks.speed import chain_scene  # noqa: E402
-from bundledyn import lie  # noqa: E402
+from benchmarks.speed import (  # noqa: E402
+    chain_scene,
+    state_error,
+    summary,
+    time_at_error as _time_at_error,  # noqa: E402
+)
 
 jax.config.update("jax_enable_x64", True)
 
@@ -268,14 +272,6 @@ def final_state(traj):
     return traj.g[-1], traj.q[-1], traj.xi[-1], traj.qdot[-1]
 
 
-def state_error(a, b):
-    g, *rest = a
-    g_ref, *rest_ref = b
-    parts = [jnp.max(jnp.abs(lie.se3_log(lie.se3_inv(g_ref) @ g)))]
-    parts += [jnp.max(jnp.abs(x - y), initial=0.0) for x, y in zip(rest, rest_ref, strict=True)]
-    return float(jnp.max(jnp.stack(parts)))
-
-
 def _drift(series, relative):
     change = jnp.max(jnp.abs(series[-1] - series[0]))
     size = jnp.max(jnp.abs(series[0]))
@@ -321,10 +317,6 @@ def timed(fn, *args, repeats):
         out = jax.block_until_ready(fn(*args))
         runs.append(time.perf_counter() - start)
     return out, max(first - statistics.median(runs), 0.0), runs
-
-
-def summary(runs):
-    return {"median": statistics.median(runs), "min": min(runs), "max": max(runs)}
 
 
 def reference(problem: Problem):
@@ -659,15 +651,7 @@ def digit_costs(series):
 
 def time_at_error(series, target):
     """Interpolated (log–log) wall time at which a method reaches `target` error, or None."""
-    pts = sorted(
-        [(p["error"], p["time"]["median"]) for p in series["points"] if p["ok"] and p["error"] > 0],
-        key=lambda x: -x[0],
-    )
-    for (e0, t0), (e1, t1) in zip(pts, pts[1:], strict=False):
-        if e1 <= target <= e0:
-            w = np.log(target / e0) / np.log(e1 / e0) if e1 != e0 else 0.0
-            return float(np.exp(np.log(t0) + w * np.log(t1 / t0)))
-    return None
+    return _time_at_error([p for p in series["points"] if p["ok"]], target)
 
 
 TARGETS = (1e-3, 1e-4, 1e-6, 1e-8, 1e-10)

@@ -313,10 +313,12 @@ def time_at_error(points, target):
     """Log–log interpolated time at `target` error over (error, time) points; None outside."""
     import numpy as np
 
-    pts = sorted(((p["error"], p["time"]["median"]) for p in points), key=lambda x: -x[0])
+    pts = sorted(
+        ((p["error"], p["time"]["median"]) for p in points if p["error"] > 0), key=lambda x: -x[0]
+    )
     for (e0, t0), (e1, t1) in zip(pts, pts[1:], strict=False):
-        if e1 <= target <= e0 and e1 < e0:
-            w = np.log(target / e0) / np.log(e1 / e0)
+        if e1 <= target <= e0:
+            w = np.log(target / e0) / np.log(e1 / e0) if e1 != e0 else 0.0
             return float(np.exp(np.log(t0) + w * np.log(t1 / t0)))
     return None
 

@@ -461,7 +461,7 @@ class _TreeMetricJet(AbstractMetricJet):
         if self.ball_dZ is not None:
             dZ = dZ + jnp.tensordot(u, self.ball_dZ, 1)
         # Each body moves by W_a: its Ĵ_a gains -ad(W_a) Ĵ_a besides the change of Z.
-        W_body = (Zu @ self.path.T).T
+        W_body = self.Jhat[..., 6:] @ u
         dJhat = dZ[None] * self.path[:, None, :]
         X = jnp.concatenate([jnp.zeros_like(self.Jhat[..., :6]), dJhat], axis=-1)
         X = X - lie.ad(W_body) @ self.Jhat
@@ -470,7 +470,7 @@ class _TreeMetricJet(AbstractMetricJet):
 
     def forms(self, X):
         Zx = self.Z[None] * X[:, None, 6:]  # (m, 6, d)
-        V_body = X[:, None, :6] + jnp.swapaxes(Zx @ self.path.T, 1, 2)  # (m, n, 6)
+        V_body = jnp.einsum("aic,mc->mai", self.Jhat, X)  # (m, n, 6)
         N = X[:, None, :6] + jnp.swapaxes(Zx @ self.strictly_above, 1, 2)  # (m, d, 6)
         Pi = self.path.T @ jnp.einsum("aij,maj->mai", self.inertias, V_body)  # (m, d, 6)
         ZN = lie.bracket(self.Z.T, N)  # [Z_k, N_k(x_i)]
