@@ -13,32 +13,37 @@ with $\\delta\\xi = \\delta U - A\\,\\delta q$).
 from typing import NamedTuple
 
 import jax.numpy as jnp
+import jax.scipy.linalg as jsl
 from jaxtyping import Array, Float
 
 from . import lie
+from ._linalg import spd_inverse_6x6
 from ._systems._base import AbstractSystem
 
 
 class BundleGeometry(NamedTuple):
-    """The metric's blocks at one state and their derivatives along its motion.
+    """The metric's blocks at one state and what (2.6)–(2.7) need of their derivatives.
 
     Derivatives are along the shape velocity, $\\partial_{\\dot q} X = \\sum_k \\dot q_k\\,
-    \\partial X/\\partial q_k$; the covectors are the three $q$-gradients (2.6) uses, at fixed
-    velocities: `kinetic_gradient` $= \\tfrac12 U^T \\partial_k I_r U$, `transport_gradient`
-    $= (I_r U)\\cdot(\\partial_k A)\\dot q$ and `shape_gradient` $= \\dot q^T \\partial_k
-    \\mathcal J_{\\text{def}}\\dot q$. `A[:, j]` is the connection applied to $e_j$. `I_r_inv` is
-    `None` for a rigid body ($d = 0$), whose one solve costs less than an inverse.
+    \\partial X/\\partial q_k$, and every one enters the equations applied to a velocity, so only
+    those products are kept: `dI_r_U` $= (\\partial_{\\dot q} I_r)U$, `dA_qdot` $=
+    (\\partial_{\\dot q} A)\\dot q$, `momentum_dA` $= (I_r U)^T\\partial_{\\dot q} A$ and `dJ_def_qdot`
+    $= (\\partial_{\\dot q}\\mathcal J_{\\text{def}})\\dot q$. The covectors are the three $q$-gradients
+    (2.6) uses, at fixed velocities: `kinetic_gradient` $= \\tfrac12 U^T \\partial_k I_r U$,
+    `transport_gradient` $= (I_r U)\\cdot(\\partial_k A)\\dot q$ and `shape_gradient` $= \\dot q^T
+    \\partial_k \\mathcal J_{\\text{def}}\\dot q$. `A[:, j]` is the connection applied to $e_j$.
     """
 
     U: Float[Array, "6"]
     qdot: Float[Array, " d"]
     I_r: Float[Array, "6 6"]
-    I_r_inv: Float[Array, "6 6"] | None
+    I_r_inv: Float[Array, "6 6"]
     A: Float[Array, "6 d"]
     J_def: Float[Array, "d d"]
-    dI_r: Float[Array, "6 6"]
-    dA: Float[Array, "6 d"]
-    dJ_def: Float[Array, "d d"]
+    dI_r_U: Float[Array, "6"]
+    dA_qdot: Float[Array, "6"]
+    momentum_dA: Float[Array, " d"]
+    dJ_def_qdot: Float[Array, " d"]
     kinetic_gradient: Float[Array, " d"]
     transport_gradient: Float[Array, " d"]
     shape_gradient: Float[Array, " d"]
@@ -48,12 +53,16 @@ def bundle_geometry(system: AbstractSystem, q, U, qdot) -> BundleGeometry:
     """Locked inertia, connection and shape metric at $q$, and what (2.6)–(2.7) need of
     their derivatives along the motion $(U, \\dot q)$.
 
-    One `system.metric_jet` feeds every term: with $\\partial = \\partial_{\\dot q}$ or $\\partial_k$,
-    $\\partial A = I_r^{-1}(\\partial B - \\partial I_r\\,A)$ and
-    $\\partial \\mathcal J_{\\text{def}} = \\partial M - \\partial B^T A - B^T \\partial A$; the three
-    gradients are the forms $x^T\\partial_k G\\,y$ with $x = [U; 0]$ and $w = [-A\\dot q; \\dot q]$
-    (the horizontal lift of $\\dot q$): $\\tfrac12 x^T\\partial_k G x$, $x^T\\partial_k G w$ and
-    $w^T\\partial_k G w$. No derivative of a matrix in all $d$ directions is formed.
+    One `system.metric_jet` feeds every term, through the velocities $x = [U; 0]$ and
+    $w = [-A\\dot q; \\dot q]$ (the horizontal lift of $\\dot q$). With $\\partial = \\partial_{\\dot q}$,
+    $\\partial A = I_r^{-1}(\\partial B - \\partial I_r\\,A)$ and $\\partial\\mathcal J_{\\text{def}} =
+    \\partial M - \\partial B^T A - B^T\\partial A$, so the applied derivatives are read off
+    $\\partial G\\,x = [\\partial I_r U; \\partial B^T U]$ and $\\partial G\\,w$:
+    $(I_r U)^T\\partial A = (\\partial G x)_q - A^T(\\partial G x)_\\xi$,
+    $(\\partial A)\\dot q = I_r^{-1}(\\partial G w)_\\xi$ and
+    $(\\partial\\mathcal J_{\\text{def}})\\dot q = (\\partial G w)_q - A^T(\\partial G w)_\\xi$.
+    The three gradients are the forms $\\tfrac12 x^T\\partial_k G x$, $x^T\\partial_k G w$ and
+    $w^T\\partial_k G w$. No derivative of a matrix is formed.
 
     **Arguments:**
 
@@ -65,22 +74,32 @@ def bundle_geometry(system: AbstractSystem, q, U, qdot) -> BundleGeometry:
     """
     if q.shape[0] == 0:  # a rigid body: no shape block to build
         G = system.metric(q)
-        zero, none = jnp.zeros((6, 6), G.dtype), jnp.zeros((0,), G.dtype)
+        zero, none = jnp.zeros(6, G.dtype), jnp.zeros((0,), G.dtype)
         return BundleGeometry(
-            U, qdot, G, None, G[:, :0], G[:0, :0], zero, G[:, :0], G[:0, :0], none, none, none
+            U,
+            qdot,
+            G,
+            spd_inverse_6x6(G),
+            G[:, :0],
+            G[:0, :0],
+            zero,
+            zero,
+            none,
+            none,
+            none,
+            none,
+            none,
         )
     jet = system.metric_jet(q)
-    G, dG = jet.metric, jet.along(qdot)
+    G = jet.metric
     I_r, B, M = G[:6, :6], G[:6, 6:], G[6:, 6:]
-    dI_r, dB, dM = dG[:6, :6], dG[:6, 6:], dG[6:, 6:]
-    # XLA's CPU triangular solve slows down sharply with many right-hand sides; the 6×6
-    # locked inertia is SPD and well conditioned, so invert it once and multiply.
-    I_inv = jnp.linalg.solve(I_r, jnp.eye(6, dtype=G.dtype))
+    I_inv = spd_inverse_6x6(I_r)  # one inverse serves A, ∂A and U̇
     A = I_inv @ B
-    dA = I_inv @ (dB - dI_r @ A)
     x = jnp.concatenate([U, jnp.zeros_like(qdot)])
     w = jnp.concatenate([-A @ qdot, qdot])
-    forms = jet.forms(jnp.stack([x, w]))
+    xw = jnp.stack([x, w])
+    dGx, dGw = jet.along_applied(qdot, xw)
+    forms = jet.forms(xw)
     return BundleGeometry(
         U,
         qdot,
@@ -88,18 +107,20 @@ def bundle_geometry(system: AbstractSystem, q, U, qdot) -> BundleGeometry:
         I_inv,
         A,
         M - B.T @ A,
-        dI_r,
-        dA,
-        dM - dB.T @ A - B.T @ dA,
+        dGx[:6],
+        I_inv @ dGw[:6],
+        dGx[6:] - A.T @ dGx[:6],
+        dGw[6:] - A.T @ dGw[:6],
         0.5 * forms[0, 0],
         forms[0, 1],
         forms[1, 1],
     )
 
 
-def inertia_covariant_derivative(geo: BundleGeometry) -> Float[Array, "6 6"]:
-    """$\\nabla_x \\mathbf I(s)(\\dot x)$ in the section frame: the derivative of the locked inertia
-    along the horizontal lift of the shape velocity $\\dot q$ (seed 004, (2.4), (2.7)).
+def inertia_covariant_derivative(geo: BundleGeometry) -> Float[Array, "6"]:
+    """$\\nabla_x \\mathbf I(s)(\\dot x)\\,\\mathbf V$ in the section frame: the derivative of the
+    locked inertia along the horizontal lift of the shape velocity $\\dot q$, applied to the
+    velocity (seed 004, (2.4), (2.7)).
 
     Along the horizontal lift $\\dot g = g\\,\\widehat{(-A\\dot q)}$, $\\mathbf I(s) = \\operatorname{Ad}^*_g I_r
     \\operatorname{Ad}_{g^{-1}}$ changes at the rate $\\operatorname{Ad}^*_g(\\partial_{\\dot q} I_r +
@@ -107,16 +128,16 @@ def inertia_covariant_derivative(geo: BundleGeometry) -> Float[Array, "6 6"]:
 
     **Returns:**
 
-    The 6×6 matrix $\\partial_{\\dot q} I_r + \\operatorname{ad}_{A\\dot q}^T I_r + I_r\\operatorname{ad}_{A\\dot q}$.
+    $(\\partial_{\\dot q} I_r + \\operatorname{ad}_{A\\dot q}^T I_r + I_r\\operatorname{ad}_{A\\dot q})U$, shape `(6,)`.
     """
-    ad_Au = lie.ad(geo.A @ geo.qdot)
-    return geo.dI_r + ad_Au.T @ geo.I_r + geo.I_r @ ad_Au
+    Au = geo.A @ geo.qdot
+    return geo.dI_r_U - lie.coad_action(Au, geo.I_r @ geo.U) + geo.I_r @ lie.bracket(Au, geo.U)
 
 
 def coadjoint_term(geo: BundleGeometry) -> Float[Array, "6"]:
     """$\\operatorname{ad}^*_{\\mathbf V}\\mathbf I(s)(\\mathbf V)$ of (2.7) in the section frame:
     $\\operatorname{ad}^*_U I_r U = -\\operatorname{ad}_U^T I_r U$ (the seed's $\\operatorname{ad}^* = -\\operatorname{ad}^T$)."""
-    return lie.coad(geo.U) @ (geo.I_r @ geo.U)
+    return lie.coad_action(geo.U, geo.I_r @ geo.U)
 
 
 def frame_transport_term(geo: BundleGeometry) -> Float[Array, "6"]:
@@ -144,9 +165,8 @@ def curvature_term(geo: BundleGeometry) -> Float[Array, " d"]:
     `bundledyn.curvature`: $(I_r U)\\cdot\\big((\\partial_{\\dot q}A)e_k - [A\\dot q, A e_k]\\big)$ minus
     the transport gradient $(I_r U)\\cdot(\\partial_k A)\\dot q$.
     """
-    mu = geo.I_r @ geo.U
     brackets = lie.bracket(geo.A @ geo.qdot, geo.A.T)  # [A q̇, A e_k], (d, 6)
-    return mu @ geo.dA - brackets @ mu - geo.transport_gradient
+    return geo.momentum_dA - brackets @ (geo.I_r @ geo.U) - geo.transport_gradient
 
 
 def levi_civita_term(geo: BundleGeometry) -> Float[Array, " d"]:
@@ -157,7 +177,7 @@ def levi_civita_term(geo: BundleGeometry) -> Float[Array, " d"]:
     = (\\partial_{\\dot q}\\mathcal J_{\\text{def}}\\,\\dot q)_k - \\tfrac12\\dot q^T\\partial_k\\mathcal J_{\\text{def}}\\dot q$,
     the Christoffel symbols of the first kind of the shape metric.
     """
-    return geo.dJ_def @ geo.qdot - 0.5 * geo.shape_gradient
+    return geo.dJ_def_qdot - 0.5 * geo.shape_gradient
 
 
 def locked_acceleration(geo: BundleGeometry, wrench) -> Float[Array, "6"]:
@@ -171,9 +191,8 @@ def locked_acceleration(geo: BundleGeometry, wrench) -> Float[Array, "6"]:
     - `wrench`: $F_b$, the total wrench on the section frame (section axes, angular first).
     """
     rhs = wrench - coadjoint_term(geo)
-    if geo.I_r_inv is None:
-        return jnp.linalg.solve(geo.I_r, rhs)
-    rhs = rhs - inertia_covariant_derivative(geo) @ geo.U + frame_transport_term(geo)
+    if geo.qdot.shape[0]:  # the shape terms vanish identically for a rigid body
+        rhs = rhs - inertia_covariant_derivative(geo) + frame_transport_term(geo)
     return geo.I_r_inv @ rhs
 
 
@@ -190,7 +209,8 @@ def shape_acceleration(geo: BundleGeometry, wrench, shape_force) -> Float[Array,
     """
     Q = shape_force - geo.A.T @ wrench
     rhs = Q - levi_civita_term(geo) + kinetic_covariant_derivative(geo) - curvature_term(geo)
-    return jnp.linalg.solve(geo.J_def, rhs)
+    # J_def is symmetric positive definite: Cholesky, without LU's pivot loop.
+    return jsl.cho_solve(jsl.cho_factor(geo.J_def), rhs)
 
 
 def reference_accelerations(system: AbstractSystem, q, xi, qdot, wrench, shape_force):

@@ -8,7 +8,7 @@ Conventions (DESIGN §1), fixed for the whole library:
 - $[X, Y] = (\omega_X\times\omega_Y,\ \omega_X\times v_Y - \omega_Y\times v_X)$, `ad(X) Y = [X, Y]`.
 - `Ad(g)` $= \begin{pmatrix}R&0\\\tilde pR&R\end{pmatrix}$, so that
   $(\mathrm{Ad}_g X)^\wedge = g\hat X g^{-1}$.
-- Wrenches $(\tau, f)$: `coAd(g)` $= \mathrm{Ad}_{g^{-1}}^T$, `coad(X)` $= -\mathrm{ad}_X^T$;
+- Wrenches $(\tau, f)$: `coAd(g)` $= \mathrm{Ad}_{g^{-1}}^T$, `coad(X)` $= -\mathrm{ad}_X^T$ (`coad_action(X, mu)` applies it);
   `klein(X, Y)` $= \omega_X\cdot v_Y + \omega_Y\cdot v_X$.
 - `dexp` is left-trivialized: $\exp(X)^{-1}\frac{d}{dt}\exp(X) = (\mathrm{dexp}(X)\dot X)^\wedge$;
   with $g = g_0\exp(\Omega)$, $\dot g = g\hat\xi \iff \dot\Omega = \mathrm{dexp}^{-1}(\Omega)\xi$.
@@ -46,6 +46,7 @@ from ._lie._se3 import (
     bracket,
     coAd,
     coad,
+    coad_action,
     dexp,
     dexp_inv,
     exp,
@@ -86,6 +87,7 @@ __all__ = [
     "bracket",
     "ad",
     "coad",
+    "coad_action",
     "klein",
     # group
     "exp",

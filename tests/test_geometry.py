@@ -287,7 +287,8 @@ def test_geometry_under_jit_vmap_grad(fn, key):
 @pytest.mark.parametrize("name", SYSTEMS)
 def test_metric_derivative_equals_autodiff_of_the_metric(name, key):
     """`metric_and_derivative` and the contractions of `metric_jet` (closed forms for trees
-    of bodies) equal jacfwd of `metric`: the derivative along $u$ and the forms $x^T\\partial_k G\\,y$."""
+    of bodies) equal jacfwd of `metric`: the derivative along $u$, alone and applied to
+    velocities, and the forms $x^T\\partial_k G\\,y$."""
     system = SYSTEMS[name]()
     d = system.shape_dim
 
@@ -299,9 +300,17 @@ def test_metric_derivative_equals_autodiff_of_the_metric(name, key):
         closed = (
             *system.metric_and_derivative(q),
             jet.along(u),
+            jet.along_applied(u, jnp.stack([x, y])),
             jet.forms(jnp.stack([x, y]))[0, 1],
         )
-        autodiff = (G_ad, dG_ad, jnp.tensordot(u, dG_ad, 1), jnp.einsum("i,kij,j->k", x, dG_ad, y))
+        dG_u = jnp.tensordot(u, dG_ad, 1)
+        autodiff = (
+            G_ad,
+            dG_ad,
+            dG_u,
+            jnp.stack([dG_u @ x, dG_u @ y]),
+            jnp.einsum("i,kij,j->k", x, dG_ad, y),
+        )
         return closed, autodiff
 
     k = jax.random.split(key, 4)

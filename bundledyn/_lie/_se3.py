@@ -366,6 +366,28 @@ def coad(x):
     return _block(W, V, jnp.zeros_like(W), W)
 
 
+def coad_action(x, mu):
+    r"""$\mathrm{ad}^*_X\mu = -\mathrm{ad}_X^T\mu = (\omega\times\tau + v\times f,\ \omega\times f)$
+    for a twist $X = (\omega, v)$ and a wrench or momentum $\mu = (\tau, f)$.
+
+    Equals `coad(x) @ mu` without forming the matrix (cross products only, which XLA fuses).
+
+    **Arguments:**
+
+    - `x`: twist, shape `(..., 6)`; `mu`: wrench, shape `(..., 6)`; leading dimensions broadcast.
+
+    **Returns:**
+
+    Shape `(..., 6)`.
+    """
+    x = jnp.asarray(x)
+    mu = jnp.asarray(mu)
+    w, v = x[..., :3], x[..., 3:]
+    tau, f = mu[..., :3], mu[..., 3:]
+    w, v, tau, f = jnp.broadcast_arrays(w, v, tau, f)
+    return jnp.concatenate([jnp.cross(w, tau) + jnp.cross(v, f), jnp.cross(w, f)], axis=-1)
+
+
 def bracket(x, y):
     r"""Lie bracket $[X, Y] = (\omega_X\times\omega_Y,\ \omega_X\times v_Y - \omega_Y\times v_X)$.
 

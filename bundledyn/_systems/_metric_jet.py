@@ -13,10 +13,11 @@ class AbstractMetricJet(eqx.Module):
 
     (2.6)–(2.7) (seed 004) never need the whole tensor $\\partial_k G$, only its contractions
     with the velocities: the derivative along the shape velocity and a few covectors
-    $k \\mapsto x^T \\partial_k G\\, y$ (`along`, `forms`). A system with structure (a tree of bodies) computes
-    these directly, at the cost of the metric, instead of $d$ derivatives of a matrix.
+    $k \\mapsto x^T \\partial_k G\\, y$ (`along`, `along_applied`, `forms`). A system with
+    structure (a tree of bodies) computes these directly, at the cost of the metric, instead
+    of $d$ derivatives of a matrix.
 
-    Subclasses give `metric`, `along` and `forms`.
+    Subclasses give `metric`, `along` and `forms`, and may override `along_applied`.
     """
 
     metric: eqx.AbstractVar[Float[Array, "6+d 6+d"]]
@@ -24,6 +25,13 @@ class AbstractMetricJet(eqx.Module):
     @abc.abstractmethod
     def along(self, u: Float[Array, " d"]) -> Float[Array, "6+d 6+d"]:
         """$\\partial_u G = \\sum_k u_k\\,\\partial G/\\partial q_k$, the derivative along a shape velocity."""
+
+    def along_applied(
+        self, u: Float[Array, " d"], X: Float[Array, "m 6+d"]
+    ) -> Float[Array, "m 6+d"]:
+        """$(\\partial_u G)\\, x_i$ for each velocity $x_i$ (row of `X`): all that (2.6)–(2.7)
+        need of the derivative along the shape velocity. The default multiplies by `along(u)`."""
+        return X @ self.along(u)
 
     @abc.abstractmethod
     def forms(self, X: Float[Array, "m 6+d"]) -> Float[Array, "m m d"]:
