@@ -47,7 +47,7 @@ from ._scene_file import SceneFile, SceneFileError, load_system
 from ._simulate import project_to_se3, simulate
 from ._solids import AbstractSolid, Box, Capsule, Ellipsoid
 from ._solver._lie_euler import LieEuler
-from ._solver._rkmk import RKMK4, RKMK54
+from ._solver._rkmk import RKMK4, RKMK54, RKMK87
 from ._solver._variational import VariationalMidpoint
 from ._state import State
 from ._systems._affine_body import AffineBody
@@ -105,6 +105,7 @@ __all__ = [
     "Prismatic",
     "RKMK4",
     "RKMK54",
+    "RKMK87",
     "Revolute",
     "RigidBody",
     "Scene",

@@ -23,7 +23,7 @@ from ._scene import Prescribed, Scene
 from ._simulate import simulate
 from ._solids import Box, Capsule, Ellipsoid
 from ._solver._lie_euler import LieEuler
-from ._solver._rkmk import RKMK4, RKMK54
+from ._solver._rkmk import RKMK4, RKMK54, RKMK87
 from ._solver._variational import VariationalMidpoint
 from ._state import State
 from ._systems._affine_body import AffineBody
@@ -34,6 +34,7 @@ from ._trajectory import Trajectory
 
 SOLVERS = {
     "RKMK54": (RKMK54, False),
+    "RKMK87": (RKMK87, False),
     "RKMK4": (RKMK4, True),
     "LieEuler": (LieEuler, True),
     "VariationalMidpoint": (VariationalMidpoint, True),
@@ -411,9 +412,9 @@ class SceneFile:
     - `[initial]` `position`, `rotation` (rotation vector), `q`, `qdot`, and `xi` (6 numbers,
       angular first) or `"zero_momentum"` for $\\xi = -A(q)\\dot q$.
     - `[time]` `t1` (required), `t0` (0), `saves` (saved times, evenly spaced; 101).
-    - `[solver]` `method` (`RKMK54` default, `RKMK4`, `LieEuler`, `VariationalMidpoint`,
-      `Tsit5`, `Dopri5`, `Dopri8`, `Kvaerno5`), `rtol`, `atol`, `dt0` (required by the
-      fixed-step methods), `max_steps`.
+    - `[solver]` `method` (`RKMK54` default, `RKMK87`, `RKMK4`, `LieEuler`,
+      `VariationalMidpoint`, `Tsit5`, `Dopri5`, `Dopri8`, `Kvaerno5`), `rtol`, `atol`,
+      `dt0` (required by the fixed-step methods), `max_steps`.
     - `[output]` `trajectory` (`.npz` name; default the scene's name), `plots` (true),
       `animation` (false), `frames` (60).
 

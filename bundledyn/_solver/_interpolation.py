@@ -26,8 +26,8 @@ class LieLocalInterpolation(AbstractLocalInterpolation):
     coefficients $C$ are the solver's continuous extension applied to its stages: for an
     RKMK method this is the classical dense output of the same tableau applied to the ODE
     $\dot\Omega = \mathrm{dexp}^{-1}_\Omega\xi$, so it has that dense output's order
-    (fourth for `RKMK54`, the quartic of `diffrax.Dopri5`; third for `RKMK4`; first, the
-    geodesic, for `LieEuler`), and $g(t)$ is on the group to rounding error for every $t$.
+    (fifth for `RKMK87`, the sextic of `diffrax.Dopri8`; fourth for `RKMK54`, the quartic of
+    `diffrax.Dopri5`; third for `RKMK4`; first, the geodesic, for `LieEuler`), and $g(t)$ is on the group to rounding error for every $t$.
 
     Built by diffrax as `interpolation_cls(t0=..., t1=..., **dense_info)`.
 
