@@ -8,13 +8,13 @@ and no forces, written once as MJCF (`chain_mjcf`) and loaded by both MuJoCo and
 1. **Vector field**: one evaluation of `scene.vector_field` inside a compiled `fori_loop`
    (no dispatch), against MuJoCo's `mj_forward` (Python loop over the C call) and one RK4
    step (`mujoco.rollout`, a C loop), for n = 1, 5, 10, 20.
-2. **10 s of the 5-body chain**: bundledyn's default solver (RKMK54) swept over tolerances
-   and MuJoCo RK4 over time steps, errors against a reference (RKMK54 at rtol 1e-13,
-   checked against diffrax's Dopri8); wall time interpolated (log–log) at the error of
-   MuJoCo RK4 with dt = 1e-2 and at 1e-10.
-3. **Batches**: `jax.vmap` of 1 s rollouts over 1024 initial states at the tolerance that
-   matches MuJoCo RK4 dt = 1e-2 in part 2, against `mujoco.rollout` on 2 threads (and MJX
-   when `mujoco.mjx` is installed).
+2. **10 s of the 5-body chain**: bundledyn's default solver (RKMK54) and its eighth-order
+   RKMK87 swept over tolerances and MuJoCo RK4 over time steps, errors against a reference
+   (RKMK87 at rtol 1e-13, checked against diffrax's Dopri8); wall time interpolated
+   (log–log) at the error of MuJoCo RK4 with dt = 1e-2 and at 1e-10.
+3. **Batches**: `jax.vmap` of 1 s rollouts over 1024 initial states, each solver at the
+   loosest tolerance that matches MuJoCo RK4 dt = 1e-2 in part 2, against `mujoco.rollout`
+   on 2 threads (and MJX when `mujoco.mjx` is installed).
 4. **Compile times** of `simulate` (n = 5, 20) and of its `jax.grad` (n = 20).
 5. **Gradients**: `jax.grad` of a loss on the 10 s rollout over the forward solve; peak
    memory of the gradient of a 10⁵-step rollout (RKMK4, fixed step, checkpointed).
@@ -49,6 +49,7 @@ TARGET_ERROR = 1e-10
 LOOP_EVALS = 1000
 BATCH = 1024
 MEMORY_STEPS = 100_000
+SOLVERS = ("RKMK54", "RKMK87")  # bundledyn's methods in parts 2 and 3; the first is the default
 
 
 # ------------------------------------------------------------------------------- models
@@ -330,38 +331,38 @@ def setting_at_error(points, target):
 
 
 def chain_ten_seconds(repeats, quick):
-    """Part 2: RKMK54 and MuJoCo RK4 on 10 s of the 5-body chain, errors vs a reference."""
+    """Part 2: bundledyn's solvers and MuJoCo RK4 on 10 s of the 5-body chain, errors vs a reference."""
     import diffrax
+
+    import bundledyn as bd
 
     scene = chain_scene(5)
     state = initial_state(scene)
     t1 = 2.0 if quick else T_CHAIN
-    run = rollout_fn(scene, t1)
-    ref, _ = run(state, 1e-13)
+    ref, _ = rollout_fn(scene, t1, solver=bd.RKMK87())(state, 1e-13)
     check, _ = rollout_fn(scene, t1, solver=diffrax.Dopri8())(state, 1e-13)
-    rows = {
-        "t1": t1,
-        "reference_agreement": state_error(ref, check),
-        "RKMK54": [],
-        "MuJoCo RK4": [],
-    }
+    rows = {"t1": t1, "reference_agreement": state_error(ref, check)}
     rtols = (1e-4, 1e-7, 1e-10) if quick else tuple(10.0**-k for k in range(3, 13))
-    for rtol in rtols:
-        (final, steps), compiled, runs = timed(run, state, rtol, repeats=repeats)
-        rows["RKMK54"].append(
-            {
-                "setting": rtol,
-                "error": state_error(final, ref),
-                "steps": int(steps),
-                "time": runs,
-                "compile": compiled,
-            }
-        )
-        print(
-            f"  RKMK54 rtol={rtol:.0e} error={rows['RKMK54'][-1]['error']:.1e} "
-            f"time={runs['median'] * 1e3:.1f} ms",
-            flush=True,
-        )
+    for method in SOLVERS:
+        run = rollout_fn(scene, t1, solver=getattr(bd, method)())
+        rows[method] = []
+        for rtol in rtols:
+            (final, steps), compiled, runs = timed(run, state, rtol, repeats=repeats)
+            rows[method].append(
+                {
+                    "setting": rtol,
+                    "error": state_error(final, ref),
+                    "steps": int(steps),
+                    "time": runs,
+                    "compile": compiled,
+                }
+            )
+            print(
+                f"  {method} rtol={rtol:.0e} error={rows[method][-1]['error']:.1e} "
+                f"time={runs['median'] * 1e3:.1f} ms",
+                flush=True,
+            )
+    rows["MuJoCo RK4"] = []
     dts = (1e-2, 2.5e-3) if quick else tuple(MUJOCO_DT / 2**k for k in range(6))
     for dt in dts:
         final, runs = mujoco_final_state(5, dt, t1, scene, state, repeats)
@@ -376,20 +377,26 @@ def chain_ten_seconds(repeats, quick):
     return rows
 
 
-def batch_throughput(rtol, t1, repeats):
-    """Part 3: `jax.vmap` of `BATCH` rollouts of the 5-body chain."""
+def batch_throughput(method, rtol, t1, repeats):
+    """Part 3: `jax.vmap` of `BATCH` rollouts of the 5-body chain with solver `method`."""
     import jax
 
     import bundledyn as bd
 
     scene = chain_scene(5)
     s = initial_state(scene)
+    solver = getattr(bd, method)()
 
     @jax.jit
     def batch(xi):
         def one(x):
             traj = bd.simulate(
-                scene, bd.State(s.g, s.q, x, s.qdot), t1, rtol=rtol, atol=rtol * 1e-2
+                scene,
+                bd.State(s.g, s.q, x, s.qdot),
+                t1,
+                solver=solver,
+                rtol=rtol,
+                atol=rtol * 1e-2,
             )
             return traj.g[-1], traj.stats["num_steps"]
 
@@ -398,6 +405,7 @@ def batch_throughput(rtol, t1, repeats):
     xi = s.xi + 0.05 * jax.random.normal(jax.random.key(0), (BATCH, 6))
     (_, steps), compiled, runs = timed(batch, xi, repeats=repeats)
     return {
+        "rtol": rtol,
         "time": runs,
         "compile": compiled,
         "rollouts_per_second": BATCH / runs["median"],
@@ -509,8 +517,8 @@ def gradient_memory(steps):
 # ------------------------------------------------------------------------------- workers
 
 
-def worker(ns, repeats, rtol, batch_t1):
-    """Parts 1, 3 and 4 under this process's XLA flags."""
+def worker(ns, repeats, batch_rtols, batch_t1):
+    """Parts 1, 3 and 4 under this process's XLA flags (`batch_rtols`: method → rtol)."""
     import bundledyn as bd
 
     bd.enable_x64()
@@ -522,7 +530,10 @@ def worker(ns, repeats, rtol, batch_t1):
             file=sys.stderr,
             flush=True,
         )
-    out["batch"] = batch_throughput(rtol, batch_t1, repeats)
+    out["batch"] = {
+        method: batch_throughput(method, rtol, batch_t1, repeats)
+        for method, rtol in batch_rtols.items()
+    }
     out["compile"] = compile_costs(tuple(dict.fromkeys((5, ns[-1]))))
     return out
 
@@ -574,38 +585,42 @@ def targets(report):
     rows.append((f"field cost growth n = {ns[1]} → {ns[-1]}", growth, int(ns[-1]) / int(ns[1])))
     chain = report["chain"]
     mj_coarse = chain["MuJoCo RK4"][0]
-    t_bd = time_at_error(chain["RKMK54"], mj_coarse["error"])
-    if t_bd is not None:
-        rows.append(
-            (
-                f"10 s chain at MuJoCo RK4 dt = 1e-2 error ({mj_coarse['error']:.1e}): "
-                "RKMK54 / MuJoCo time",
-                t_bd / mj_coarse["time"]["median"],
-                1.0,
+    t_mj = time_at_error(chain["MuJoCo RK4"], TARGET_ERROR)
+    for method in SOLVERS:
+        label = f"{method} (default)" if method == SOLVERS[0] else method
+        t_bd = time_at_error(chain[method], mj_coarse["error"])
+        if t_bd is not None:
+            rows.append(
+                (
+                    f"10 s chain at MuJoCo RK4 dt = 1e-2 error ({mj_coarse['error']:.1e}): "
+                    f"{label} / MuJoCo time",
+                    t_bd / mj_coarse["time"]["median"],
+                    1.0,
+                )
             )
-        )
-    t_bd, t_mj = (time_at_error(chain[m], TARGET_ERROR) for m in ("RKMK54", "MuJoCo RK4"))
-    if t_bd is not None and t_mj is not None:
-        rows.append(("10 s chain at error 1e-10: RKMK54 / MuJoCo RK4 time", t_bd / t_mj, 0.5))
+        t_bd = time_at_error(chain[method], TARGET_ERROR)
+        if t_bd is not None and t_mj is not None:
+            rows.append((f"10 s chain at error 1e-10: {label} / MuJoCo RK4 time", t_bd / t_mj, 0.5))
     mjb = report["mujoco_batch"]
-    rows.append(
-        (
-            f"batch {BATCH}: MuJoCo rollout (2 threads) / bundledyn vmap rollouts per s",
-            mjb["rollouts_per_second"] / ours["batch"]["rollouts_per_second"],
-            1.0,
-        )
-    )
-    if report.get("mjx_batch"):
+    for method, batch in ours["batch"].items():
         rows.append(
             (
-                "batch: MJX / bundledyn rollouts per s (× 10)",
-                10
-                * report["mjx_batch"]["instance_steps_per_second"]
-                / mjb["steps"]
-                / ours["batch"]["rollouts_per_second"],
+                f"batch {BATCH}: MuJoCo rollout (2 threads) / bundledyn vmap ({method}) rollouts per s",
+                mjb["rollouts_per_second"] / batch["rollouts_per_second"],
                 1.0,
             )
         )
+        if report.get("mjx_batch"):
+            rows.append(
+                (
+                    f"batch: MJX / bundledyn ({method}) rollouts per s (× 10)",
+                    10
+                    * report["mjx_batch"]["instance_steps_per_second"]
+                    / mjb["steps"]
+                    / batch["rollouts_per_second"],
+                    1.0,
+                )
+            )
     last = ns[-1]
     rows.append(
         (f"compile simulate, n = {last} [s]", ours["compile"][last]["simulate"]["total"], 10.0)
@@ -670,16 +685,16 @@ def markdown(report):
         "",
         f"## 2. {chain['t1']:g} s of the 5-body chain",
         "",
-        f"Reference: RKMK54 at rtol 1e-13; diffrax Dopri8 at rtol 1e-13 agrees to "
+        f"Reference: RKMK87 at rtol 1e-13; diffrax Dopri8 at rtol 1e-13 agrees to "
         f"{chain['reference_agreement']:.1e}. Error: max over the pose (log of the relative "
         "pose), q, ξ and q̇ at t1.",
         "",
         "| method | setting | steps | error | time [ms] |",
         "|---|--:|--:|--:|--:|",
     ]
-    for method in ("RKMK54", "MuJoCo RK4"):
+    for method in (*SOLVERS, "MuJoCo RK4"):
         for p in chain[method]:
-            label = f"rtol {p['setting']:.0e}" if method == "RKMK54" else f"dt {p['setting']:.3g}"
+            label = f"rtol {p['setting']:.0e}" if method in SOLVERS else f"dt {p['setting']:.3g}"
             lines.append(
                 f"| {method} | {label} | {p['steps']} | {p['error']:.2e} | {fmt(p['time'], 1e3)} |"
             )
@@ -688,22 +703,20 @@ def markdown(report):
         "",
         f"## 3. Batches of {BATCH} (5-body chain, 1 s)",
         "",
-        f"bundledyn: `jax.vmap(simulate)` at rtol {report['batch_rtol']:.0e}, the loosest "
-        "tolerance at least as accurate as MuJoCo RK4 with dt = 1e-2 over 10 s (part 2). "
+        "bundledyn: `jax.vmap(simulate)`, each solver at the loosest tolerance at least as "
+        "accurate as MuJoCo RK4 with dt = 1e-2 over 10 s (part 2). "
         f"MuJoCo: `mujoco.rollout`, RK4, dt = 1e-2, {mjb['threads']} threads.",
         "",
         "| simulator | time per batch [s] | rollouts/s | instance-steps/s |",
         "|---|--:|--:|--:|",
     ]
-    for key, label in (
-        ("bundledyn", "bundledyn, CPU_XLA_FLAGS"),
-        ("xla_defaults", "bundledyn, XLA defaults"),
-    ):
-        b = settings[key]["batch"]
-        lines.append(
-            f"| {label} | {fmt(b['time'], 1)} | {b['rollouts_per_second']:.3g} "
-            f"| {b['rollouts_per_second'] * b['mean_steps']:.3g} (adaptive, {b['mean_steps']:.0f} steps each) |"
-        )
+    for key, label in (("bundledyn", "CPU_XLA_FLAGS"), ("xla_defaults", "XLA defaults")):
+        for method, b in settings[key]["batch"].items():
+            lines.append(
+                f"| bundledyn {method} rtol {b['rtol']:.0e}, {label} | {fmt(b['time'], 1)} "
+                f"| {b['rollouts_per_second']:.3g} | {b['rollouts_per_second'] * b['mean_steps']:.3g} "
+                f"(adaptive, {b['mean_steps']:.0f} steps each) |"
+            )
     lines.append(
         f"| MuJoCo rollout | {fmt(mjb['time'], 1)} | {mjb['rollouts_per_second']:.3g} "
         f"| {mjb['instance_steps_per_second']:.3g} |"
@@ -764,8 +777,9 @@ def main(argv=None):
     args = parser.parse_args(argv)
     repeats = args.repeats or (2 if args.quick else 5)
     if args.worker:
-        ns, rtol, t1 = [int(n) for n in args.worker[0].split(",")], *map(float, args.worker[2:])
-        print(json.dumps(worker(ns, int(args.worker[1]), rtol, t1)))
+        ns = [int(n) for n in args.worker[0].split(",")]
+        rtols, t1 = json.loads(args.worker[2]), float(args.worker[3])
+        print(json.dumps(worker(ns, int(args.worker[1]), rtols, t1)))
         return 0
     if args.memory:
         import bundledyn as bd
@@ -792,7 +806,9 @@ def main(argv=None):
     print("part 2: chain", flush=True)
     report["chain"] = chain_ten_seconds(repeats, args.quick)
     coarse = report["chain"]["MuJoCo RK4"][0]["error"]
-    report["batch_rtol"] = setting_at_error(report["chain"]["RKMK54"], coarse) or 1e-6
+    report["batch_rtol"] = {
+        method: setting_at_error(report["chain"][method], coarse) or 1e-6 for method in SOLVERS
+    }
     batch_t1 = 0.2 if args.quick else 1.0
     print("part 1: MuJoCo", flush=True)
     report["mujoco_field"] = {str(n): mujoco_field_and_step(n, repeats) for n in ns}
@@ -808,7 +824,7 @@ def main(argv=None):
         worker_args = [
             ",".join(map(str, ns)),
             str(repeats),
-            str(report["batch_rtol"]),
+            json.dumps(report["batch_rtol"]),
             str(batch_t1),
         ]
         report["settings"][key] = run_worker("worker", worker_args, flags)

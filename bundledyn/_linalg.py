@@ -10,7 +10,6 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Float
 
-
 # adj(M)[i, j] = M[j+1, i+1] M[j+2, i+2] - M[j+2, i+1] M[j+1, i+2] (indices mod 3): one gather
 # pattern per factor, so the adjugate is a single fused elementwise kernel.
 _I, _J = np.indices((3, 3))
@@ -30,9 +29,7 @@ def inverse_3x3(M: Float[Array, "3 3"]) -> Float[Array, "3 3"]:
     $M^{-1}$, with rows $(c_1\\times c_2,\\ c_2\\times c_0,\\ c_0\\times c_1)/(c_0\\cdot(c_1\\times c_2))$
     for the columns $c_j$ of $M$.
     """
-    adjugate = (
-        M[_NEXT, _NEXT_T] * M[_AFTER, _AFTER_T] - M[_AFTER, _NEXT_T] * M[_NEXT, _AFTER_T]
-    )
+    adjugate = M[_NEXT, _NEXT_T] * M[_AFTER, _AFTER_T] - M[_AFTER, _NEXT_T] * M[_NEXT, _AFTER_T]
     return adjugate / jnp.dot(M[:, 0], adjugate[0])
 
 
