@@ -329,11 +329,14 @@ class Multibody(AbstractSystem):
         return T, ball_nodes, Z, mask, self._to_section(T_body), Jhat
 
     def _section_inertias(self, r):
-        """$\\tilde M_a = \\operatorname{Ad}_{r_a^{-1}}^T M_a \\operatorname{Ad}_{r_a^{-1}}$: each body's inertia in the section frame."""
-        Ad_inv = lie.Ad(lie.se3_inv(r))
-        return (
-            jnp.swapaxes(Ad_inv, 1, 2) @ spatial_inertia(self.mass, self.com, self.inertia) @ Ad_inv
-        )
+        """$\\tilde M_a = \\operatorname{Ad}_{r_a^{-1}}^T M_a \\operatorname{Ad}_{r_a^{-1}}$: each body's inertia in the section frame.
+
+        Formed directly as the spatial inertia about the section origin of mass $m_a$ at
+        $R_a c_a + p_a$ with rotational inertia $R_a J_a R_a^T$ (no 6×6 products).
+        """
+        R, p = r[:, :3, :3], r[:, :3, 3]
+        com = jnp.einsum("aij,aj->ai", R, self.com) + p
+        return spatial_inertia(self.mass, com, R @ self.inertia @ jnp.swapaxes(R, 1, 2))
 
     def metric(self, q):
         r, Jhat = self.velocity_jacobians(q)

@@ -23,9 +23,12 @@ def spatial_inertia(mass, com, inertia):
     shape `(..., 6, 6)`, so that $T = \\tfrac12 \\nu^T M \\nu$ for a body twist $\\nu=(\\omega, v)$.
     """
     m = jnp.asarray(mass)[..., None, None]
-    c_hat = lie.hat(com)
+    c = jnp.asarray(com)
+    c_hat = lie.hat(c)
     eye = jnp.broadcast_to(jnp.eye(3, dtype=c_hat.dtype), c_hat.shape)
-    top = jnp.concatenate([inertia - m * c_hat @ c_hat, m * c_hat], axis=-1)
+    # c̃c̃ = c cᵀ - |c|² 1: elementwise, so the whole matrix is one fused kernel.
+    c_hat2 = c[..., :, None] * c[..., None, :] - jnp.sum(c * c, axis=-1)[..., None, None] * eye
+    top = jnp.concatenate([inertia - m * c_hat2, m * c_hat], axis=-1)
     bottom = jnp.concatenate([-m * c_hat, m * eye], axis=-1)
     return jnp.concatenate([top, bottom], axis=-2)
 
