@@ -35,7 +35,6 @@ import json
 import os
 import pathlib
 import platform
-import statistics
 import sys
 import time
 import warnings
@@ -53,7 +52,8 @@ from benchmarks.speed import (  # noqa: E402
     chain_scene,
     state_error,
     summary,
-    time_at_error as _time_at_error,  # noqa: E402
+    time_at_error as _time_at_error,
+    timed,  # noqa: E402
 )
 
 jax.config.update("jax_enable_x64", True)
@@ -306,19 +306,6 @@ def make_solve(problem: Problem, method: Method):
     return solve
 
 
-def timed(fn, *args, repeats):
-    """`(result, compile seconds, [run seconds])`: first call compiles, then `repeats` runs."""
-    start = time.perf_counter()
-    out = jax.block_until_ready(fn(*args))
-    first = time.perf_counter() - start
-    runs = []
-    for _ in range(repeats):
-        start = time.perf_counter()
-        out = jax.block_until_ready(fn(*args))
-        runs.append(time.perf_counter() - start)
-    return out, max(first - statistics.median(runs), 0.0), runs
-
-
 def reference(problem: Problem):
     """RKMK 5(4) and Dopri8 at the tightest tolerance; their difference is the error floor."""
     states = []
@@ -351,7 +338,7 @@ def sweep(problem: Problem, method: Method, ref, quick: bool, repeats: int):
                 "momentum_drift": float(momentum),
                 "steps": steps,
                 "evaluations": steps * method.stages,
-                "time": summary(runs),
+                "time": runs,
             }
         )
         print(
@@ -517,11 +504,11 @@ def throughput(problem: Problem, batches, repeats, t1=1.0, rtol=1e-6):
     for n in batches:
         xi = s.xi + 0.05 * jax.random.normal(jax.random.key(n), (n, 6))
         (_, steps), compiled, runs = timed(batch, xi, repeats=repeats)
-        t = statistics.median(runs)
+        t = runs["median"]
         rows.append(
             {
                 "batch": n,
-                "time": summary(runs),
+                "time": runs,
                 "rollouts_per_second": n / t,
                 "instance_steps_per_second": float(jnp.sum(steps)) / t,
                 "compile": compiled,
@@ -550,7 +537,7 @@ def gradient_cost(problem: Problem, repeats, t1=1.0, rtol=1e-8):
 
     forward = jax.jit(lambda xi: loss(xi, diffrax.RecursiveCheckpointAdjoint()))
     _, _, base = timed(forward, s.xi, repeats=repeats)
-    rows = [{"adjoint": "forward solve", "time": summary(base), "ratio": 1.0}]
+    rows = [{"adjoint": "forward solve", "time": base, "ratio": 1.0}]
     for name, adjoint in (
         ("RecursiveCheckpointAdjoint", diffrax.RecursiveCheckpointAdjoint()),
         (
@@ -565,8 +552,8 @@ def gradient_cost(problem: Problem, repeats, t1=1.0, rtol=1e-8):
         rows.append(
             {
                 "adjoint": name,
-                "time": summary(runs),
-                "ratio": statistics.median(runs) / statistics.median(base),
+                "time": runs,
+                "ratio": runs["median"] / base["median"],
                 "compile": compiled,
             }
         )
@@ -587,7 +574,7 @@ def compile_times(ns, repeats=3):
             ]
         )
         _, compiled, runs = timed(solve, repeats=repeats)
-        rows.append({"bodies": n, "compile": compiled, "run": summary(runs)})
+        rows.append({"bodies": n, "compile": compiled, "run": runs})
         print(f"  compile n={n:2d}: {compiled:6.1f} s", flush=True)
     return rows
 

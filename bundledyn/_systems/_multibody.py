@@ -314,11 +314,11 @@ class Multibody(AbstractSystem):
         return r, Jhat
 
     def _jacobian_parts(self, q):
-        """Node poses, ball nodes, joint columns $Z$, path mask, body poses $r_a$ and $\\hat J_a$."""
+        """Node poses, ball nodes, joint columns $Z$, body poses $r_a$ and $\\hat J_a$."""
         T, screw_nodes, ball_nodes, S_ball = self._node_poses(q)
         T_body = T[np.array(self._tables.body_last)]
         Z = self._shape_columns(q, T, screw_nodes, ball_nodes, S_ball)
-        mask = np.array(self._tables.path_mask).reshape(self.num_bodies, self.shape_dim)
+        mask = _column_tables(self._tables)[0]
         if self.section != 0:
             # Velocities relative to the section body, seen in its frame.
             Z = lie.Ad(lie.se3_inv(T_body[self.section])) @ Z
@@ -326,7 +326,7 @@ class Multibody(AbstractSystem):
         mask = jnp.asarray(mask, q.dtype)
         eye = jnp.broadcast_to(jnp.eye(6, dtype=q.dtype), (self.num_bodies, 6, 6))
         Jhat = jnp.concatenate([eye, Z[None] * mask[:, None, :]], axis=-1)
-        return T, ball_nodes, Z, mask, self._to_section(T_body), Jhat
+        return T, ball_nodes, Z, self._to_section(T_body), Jhat
 
     def _section_inertias(self, r):
         """$\\tilde M_a = \\operatorname{Ad}_{r_a^{-1}}^T M_a \\operatorname{Ad}_{r_a^{-1}}$: each body's inertia in the section frame.
@@ -367,7 +367,7 @@ class Multibody(AbstractSystem):
         """
         if self.section != 0 or self.shape_dim == 0:
             return super().metric_jet(q)
-        T, ball_nodes, Z, _, r, _ = self._jacobian_parts(q)
+        T, ball_nodes, Z, r, _ = self._jacobian_parts(q)
         inertias = self._section_inertias(r)
         path, at_or_above, strictly_above = (
             jnp.asarray(a, q.dtype) for a in _column_tables(self._tables)
