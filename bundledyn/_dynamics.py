@@ -17,7 +17,7 @@ import jax.scipy.linalg as jsl
 from jaxtyping import Array, Float
 
 from . import lie
-from ._linalg import spd_inverse_6x6
+from ._linalg import matmul, spd_inverse_6x6
 from ._systems._base import AbstractSystem
 
 
@@ -94,9 +94,9 @@ def bundle_geometry(system: AbstractSystem, q, U, qdot) -> BundleGeometry:
     G = jet.metric
     I_r, B, M = G[:6, :6], G[:6, 6:], G[6:, 6:]
     I_inv = spd_inverse_6x6(I_r)  # one inverse serves A, ∂A and U̇
-    A = I_inv @ B
+    A = matmul(I_inv, B)
     x = jnp.concatenate([U, jnp.zeros_like(qdot)])
-    w = jnp.concatenate([-A @ qdot, qdot])
+    w = jnp.concatenate([-matmul(A, qdot), qdot])
     xw = jnp.stack([x, w])
     dGx, dGw = jet.along_applied(qdot, xw)
     forms = jet.forms(xw)
@@ -106,11 +106,11 @@ def bundle_geometry(system: AbstractSystem, q, U, qdot) -> BundleGeometry:
         I_r,
         I_inv,
         A,
-        M - B.T @ A,
+        M - matmul(B.T, A),
         dGx[:6],
-        I_inv @ dGw[:6],
-        dGx[6:] - A.T @ dGx[:6],
-        dGw[6:] - A.T @ dGw[:6],
+        matmul(I_inv, dGw[:6]),
+        dGx[6:] - matmul(A.T, dGx[:6]),
+        dGw[6:] - matmul(A.T, dGw[:6]),
         0.5 * forms[0, 0],
         forms[0, 1],
         forms[1, 1],
@@ -130,21 +130,25 @@ def inertia_covariant_derivative(geo: BundleGeometry) -> Float[Array, "6"]:
 
     $(\\partial_{\\dot q} I_r + \\operatorname{ad}_{A\\dot q}^T I_r + I_r\\operatorname{ad}_{A\\dot q})U$, shape `(6,)`.
     """
-    Au = geo.A @ geo.qdot
-    return geo.dI_r_U - lie.coad_action(Au, geo.I_r @ geo.U) + geo.I_r @ lie.bracket(Au, geo.U)
+    Au = matmul(geo.A, geo.qdot)
+    return (
+        geo.dI_r_U
+        - lie.coad_action(Au, matmul(geo.I_r, geo.U))
+        + matmul(geo.I_r, lie.bracket(Au, geo.U))
+    )
 
 
 def coadjoint_term(geo: BundleGeometry) -> Float[Array, "6"]:
     """$\\operatorname{ad}^*_{\\mathbf V}\\mathbf I(s)(\\mathbf V)$ of (2.7) in the section frame:
     $\\operatorname{ad}^*_U I_r U = -\\operatorname{ad}_U^T I_r U$ (the seed's $\\operatorname{ad}^* = -\\operatorname{ad}^T$)."""
-    return lie.coad_action(geo.U, geo.I_r @ geo.U)
+    return lie.coad_action(geo.U, matmul(geo.I_r, geo.U))
 
 
 def frame_transport_term(geo: BundleGeometry) -> Float[Array, "6"]:
     """$I_r[A\\dot q, U]$: the part of $\\mathbf I(s)(\\dot{\\mathbf V})$ that comes from the section frame
     turning. With $\\mathbf V = \\operatorname{Ad}_g U$ and $\\xi = U - A\\dot q$,
     $\\operatorname{Ad}_{g^{-1}}\\dot{\\mathbf V} = \\dot U + [\\xi, U] = \\dot U - [A\\dot q, U]$."""
-    return geo.I_r @ lie.bracket(geo.A @ geo.qdot, geo.U)
+    return matmul(geo.I_r, lie.bracket(matmul(geo.A, geo.qdot), geo.U))
 
 
 def kinetic_covariant_derivative(geo: BundleGeometry) -> Float[Array, " d"]:
@@ -154,7 +158,7 @@ def kinetic_covariant_derivative(geo: BundleGeometry) -> Float[Array, " d"]:
     $= \\tfrac12 U^T\\partial_{\\delta q} I_r U + (I_r U)\\cdot[A\\delta q, U]$.
     """
     brackets = lie.bracket(geo.A.T, geo.U)  # [A e_k, U], (d, 6)
-    return geo.kinetic_gradient + brackets @ (geo.I_r @ geo.U)
+    return geo.kinetic_gradient + matmul(brackets, matmul(geo.I_r, geo.U))
 
 
 def curvature_term(geo: BundleGeometry) -> Float[Array, " d"]:
@@ -165,8 +169,8 @@ def curvature_term(geo: BundleGeometry) -> Float[Array, " d"]:
     `bundledyn.curvature`: $(I_r U)\\cdot\\big((\\partial_{\\dot q}A)e_k - [A\\dot q, A e_k]\\big)$ minus
     the transport gradient $(I_r U)\\cdot(\\partial_k A)\\dot q$.
     """
-    brackets = lie.bracket(geo.A @ geo.qdot, geo.A.T)  # [A q̇, A e_k], (d, 6)
-    return geo.momentum_dA - brackets @ (geo.I_r @ geo.U) - geo.transport_gradient
+    brackets = lie.bracket(matmul(geo.A, geo.qdot), geo.A.T)  # [A q̇, A e_k], (d, 6)
+    return geo.momentum_dA - matmul(brackets, matmul(geo.I_r, geo.U)) - geo.transport_gradient
 
 
 def levi_civita_term(geo: BundleGeometry) -> Float[Array, " d"]:
@@ -193,7 +197,7 @@ def locked_acceleration(geo: BundleGeometry, wrench) -> Float[Array, "6"]:
     rhs = wrench - coadjoint_term(geo)
     if geo.qdot.shape[0]:  # the shape terms vanish identically for a rigid body
         rhs = rhs - inertia_covariant_derivative(geo) + frame_transport_term(geo)
-    return geo.I_r_inv @ rhs
+    return matmul(geo.I_r_inv, rhs)
 
 
 def shape_acceleration(geo: BundleGeometry, wrench, shape_force) -> Float[Array, " d"]:
@@ -207,7 +211,7 @@ def shape_acceleration(geo: BundleGeometry, wrench, shape_force) -> Float[Array,
     - `geo`: the `BundleGeometry` of the state.
     - `wrench`: $F_b$; `shape_force`: $Q_H$ (both in the variables $(\\xi, \\dot q)$).
     """
-    Q = shape_force - geo.A.T @ wrench
+    Q = shape_force - matmul(geo.A.T, wrench)
     rhs = Q - levi_civita_term(geo) + kinetic_covariant_derivative(geo) - curvature_term(geo)
     # J_def is symmetric positive definite: Cholesky, without LU's pivot loop.
     return jsl.cho_solve(jsl.cho_factor(geo.J_def), rhs)

@@ -13,6 +13,7 @@ from ._dynamics import bundle_geometry, locked_acceleration, shape_acceleration
 from ._effects import AbstractEffect, Kinematics
 from ._frames import AbstractFrame
 from ._geometry import connection
+from ._linalg import matmul
 from ._systems._base import AbstractSystem
 
 
@@ -106,7 +107,7 @@ class Scene(eqx.Module):
         """$\\operatorname{Ad}_{g^{-1}}\\vartheta$, $\\operatorname{Ad}_{g^{-1}}\\dot\\vartheta$ and $M$: what the frame adds to the velocities."""
         M, theta, theta_dot = self.frame.motion_and_velocity(t)
         Ad_inv = lie.Ad(lie.se3_inv(g))
-        return Ad_inv @ theta, Ad_inv @ theta_dot, M
+        return matmul(Ad_inv, theta), matmul(Ad_inv, theta_dot), M
 
     def forces(self, kin: Kinematics):
         """Total generalized force `(F_b, Q_H)` of the scene's effects at `kin`."""
@@ -129,17 +130,17 @@ class Scene(eqx.Module):
         q, U, qdot = self.split(t, x)
         if self.frame is not None:
             shift, shift_dot, M = self._frame_shift(t, g)
-            U, g_true = U + shift, M @ g
+            U, g_true = U + shift, matmul(M, g)
         else:
             g_true = g
         geo = bundle_geometry(self.system, q, U, qdot)
-        xi = U - geo.A @ qdot
+        xi = U - matmul(geo.A, qdot)
         F, Q = self.forces(Kinematics(t, g_true, q, xi, qdot))
         Udot = locked_acceleration(geo, F)
         if self.frame is not None:
             xi = xi - shift
             Udot = Udot + lie.bracket(xi, shift) - shift_dot
-        gdot = g @ lie.hat(xi)
+        gdot = matmul(g, lie.hat(xi))
         if self.free_shape:
             return gdot, jnp.concatenate([qdot, Udot, shape_acceleration(geo, F, Q)])
         return gdot, Udot

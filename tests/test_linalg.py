@@ -3,8 +3,9 @@
 import jax
 import jax.numpy as jnp
 import numpy as np
+import pytest
 
-from bundledyn._linalg import inverse_3x3, spd_inverse_6x6
+from bundledyn._linalg import einsum, inverse_3x3, matmul, spd_inverse_6x6
 from bundledyn._systems._rigid_body import spatial_inertia
 
 
@@ -82,3 +83,57 @@ def test_spd_inverse_vmaps():
     np.testing.assert_allclose(
         jax.vmap(spd_inverse_6x6)(Ms), np.linalg.inv(Ms), rtol=1e-11, atol=1e-12
     )
+
+
+_CONTRACTIONS = [
+    ("...ij,...jk->...ik", [(5, 3, 3), (1, 3, 3)]),
+    ("...ij,...jk->...ik", [(3, 3), (2, 3, 3)]),
+    ("...ij,j->...i", [(4, 6, 6), (6,)]),
+    ("j,...jk->...k", [(3,), (2, 3, 4)]),
+    ("kij,kj->ik", [(4, 6, 6), (4, 6)]),
+    ("aij,ajk,alk->ail", [(5, 3, 3), (5, 3, 3), (5, 3, 3)]),
+    ("il,ml,al->mai", [(6, 4), (2, 4), (5, 4)]),
+    ("...i,ij->...j", [(14,), (14, 6)]),
+    ("...i,ij->...j", [(3, 14), (14, 0)]),
+    ("al,aij->lij", [(20, 19), (20, 6, 6)]),  # above the limit: jnp.einsum
+    ("ii->i", [(3, 3)]),  # a repeated index: jnp.einsum
+]
+
+
+@pytest.mark.parametrize("subscripts, shapes", _CONTRACTIONS)
+def test_small_einsum_matches_jnp_einsum(subscripts, shapes):
+    rng = np.random.default_rng(0)
+    operands = [jnp.asarray(rng.standard_normal(s)) for s in shapes]
+    expected = jnp.einsum(subscripts, *operands, precision="highest")
+    out = einsum(subscripts, *operands)
+    assert out.shape == expected.shape and out.dtype == expected.dtype
+    np.testing.assert_allclose(out, expected, rtol=1e-14, atol=1e-14)
+
+
+def test_small_einsum_is_fused_elementwise_work():
+    """No `dot` in the compiled product of two 6×6 matrices (the point of the helper)."""
+    a = jnp.ones((6, 6))
+    text = jax.jit(lambda a: matmul(a, a.T)).lower(a).compile().as_text()
+    assert " dot(" not in text
+    big = jnp.ones((20, 19))
+    text = jax.jit(lambda p: einsum("al,aij->lij", p, jnp.ones((20, 6, 6)))).lower(big)
+    assert "dot_general" in text.as_text()
+
+
+def test_matmul_follows_jnp_matmul_and_its_derivatives():
+    rng = np.random.default_rng(1)
+    for shape_a, shape_b in [
+        ((4, 4), (4, 4)),
+        ((5, 4, 4), (5, 4, 4)),
+        ((6, 6), (6,)),
+        ((3,), (3, 3)),
+    ]:
+        a, b = rng.standard_normal(shape_a), rng.standard_normal(shape_b)
+        np.testing.assert_allclose(matmul(a, b), np.matmul(a, b), rtol=1e-14, atol=1e-14)
+        loss = lambda a, b, f: jnp.sum(jnp.sin(f(a, b)))  # noqa: E731
+        for argnum in (0, 1):
+            got = jax.grad(loss, argnum)(a, b, matmul)
+            want = jax.grad(loss, argnum)(a, b, jnp.matmul)
+            np.testing.assert_allclose(got, want, rtol=1e-13, atol=1e-14)
+    vmapped = jax.vmap(matmul)(rng.standard_normal((7, 6, 6)), rng.standard_normal((7, 6)))
+    assert vmapped.shape == (7, 6)

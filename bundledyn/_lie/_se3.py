@@ -16,6 +16,7 @@ their safe branches.
 import jax
 import jax.numpy as jnp
 
+from .._linalg import matmul
 from ._so3 import (
     _float,
     _so3_exp_and_left_jacobian,
@@ -298,7 +299,7 @@ def Ad(g):
         return g
     R = g[..., :3, :3]
     P = so3_hat(g[..., :3, 3])
-    return _block(R, jnp.zeros_like(R), P @ R, R)
+    return _block(R, jnp.zeros_like(R), matmul(P, R), R)
 
 
 def coAd(g):
@@ -319,7 +320,7 @@ def coAd(g):
         return g
     R = g[..., :3, :3]
     P = so3_hat(g[..., :3, 3])
-    return _block(R, P @ R, jnp.zeros_like(R), R)
+    return _block(R, matmul(P, R), jnp.zeros_like(R), R)
 
 
 def ad(x):

@@ -11,6 +11,7 @@ import numpy as np
 from jaxtyping import Array, Float
 
 from .. import lie
+from .._linalg import einsum, matmul
 from ._base import AbstractSystem
 from ._joints import AbstractJoint
 from ._metric_jet import AbstractMetricJet
@@ -236,10 +237,10 @@ class Multibody(AbstractSystem):
         phi = q[q_start[ball_nodes][:, None] + np.arange(3)]
         R = lie.so3_exp(phi)
         a = self.ball_anchors
-        p = a - (R @ a[..., None])[..., 0]
+        p = a - matmul(R, a[..., None])[..., 0]
         F_ball = _pose(R, p)
         Jr = lie.so3_dexp(phi)
-        S_ball = jnp.concatenate([Jr, lie.hat(a) @ Jr], axis=-2)
+        S_ball = jnp.concatenate([Jr, matmul(lie.hat(a), Jr)], axis=-2)
         # One gather places the factors in node order; fixed nodes take the identity.
         order = np.full(len(kinds), len(screw_nodes) + len(ball_nodes))
         order[screw_nodes] = np.arange(len(screw_nodes))
@@ -259,12 +260,12 @@ class Multibody(AbstractSystem):
         first = np.array(t.first)
         node_body = np.array(t.node_body)
         placement_index = np.where(first, node_body, 0)  # placement[0] is the identity
-        T = self.placement[placement_index] @ F
+        T = matmul(self.placement[placement_index], F)
         sentinel = n_nodes
         anc = np.array([a if a >= 0 else sentinel for a in t.node_parent] + [sentinel])
         eye = jnp.eye(4, dtype=T.dtype)[None]
         while np.any(anc[:n_nodes] != sentinel):
-            T = jnp.concatenate([T, eye])[anc[:n_nodes]] @ T
+            T = matmul(jnp.concatenate([T, eye])[anc[:n_nodes]], T)
             anc = anc[anc]
         return T, screw_nodes, ball_nodes, S_ball
 
@@ -285,12 +286,12 @@ class Multibody(AbstractSystem):
     def _to_section(self, T):
         if self.section == 0:
             return T
-        return lie.se3_inv(T[self.section]) @ T
+        return matmul(lie.se3_inv(T[self.section]), T)
 
     def _shape_columns(self, q, T, screw_nodes, ball_nodes, S_ball):
         """$Z$: every joint column as a twist in the base frame, shape (6, d)."""
-        Z_screw = (lie.Ad(T[screw_nodes]) @ self.screw_axes[..., None])[..., 0].T
-        Z_ball = jnp.moveaxis(lie.Ad(T[ball_nodes]) @ S_ball, 0, 1).reshape(6, -1)
+        Z_screw = einsum("kij,kj->ik", lie.Ad(T[screw_nodes]), self.screw_axes)
+        Z_ball = einsum("kij,kjl->ikl", lie.Ad(T[ball_nodes]), S_ball).reshape(6, -1)
         q_start = np.array(self._tables.q_start)
         columns = np.concatenate(
             [q_start[screw_nodes], (q_start[ball_nodes][:, None] + np.arange(3)).reshape(-1)]
@@ -321,7 +322,7 @@ class Multibody(AbstractSystem):
         mask = _column_tables(self._tables)[0]
         if self.section != 0:
             # Velocities relative to the section body, seen in its frame.
-            Z = lie.Ad(lie.se3_inv(T_body[self.section])) @ Z
+            Z = matmul(lie.Ad(lie.se3_inv(T_body[self.section])), Z)
             mask = mask - mask[self.section]
         mask = jnp.asarray(mask, q.dtype)
         eye = jnp.broadcast_to(jnp.eye(6, dtype=q.dtype), (self.num_bodies, 6, 6))
@@ -336,7 +337,7 @@ class Multibody(AbstractSystem):
         """
         R, p = r[:, :3, :3], r[:, :3, 3]
         com = jnp.einsum("aij,aj->ai", R, self.com) + p
-        return spatial_inertia(self.mass, com, R @ self.inertia @ jnp.swapaxes(R, 1, 2))
+        return spatial_inertia(self.mass, com, einsum("aij,ajk,alk->ail", R, self.inertia, R))
 
     def metric(self, q):
         r, Jhat = self.velocity_jacobians(q)
@@ -390,7 +391,7 @@ class Multibody(AbstractSystem):
 
         def columns(p, a):
             Jr = lie.so3_dexp(p)
-            return jnp.concatenate([Jr, lie.hat(a) @ Jr], axis=-2)
+            return jnp.concatenate([Jr, matmul(lie.hat(a), Jr)], axis=-2)
 
         dS = jax.vmap(jax.jacfwd(columns))(phi, self.ball_anchors)  # (k, 6, i, l)
         values = jnp.einsum("kxy,kyil->kilx", lie.Ad(T[ball_nodes]), dS)
@@ -446,7 +447,7 @@ def _composite_metric(inertias, Z, path, at_or_above, strictly_above):
     """
     composite = jnp.einsum("al,aij->lij", path, inertias)
     B = jnp.einsum("lij,jl->il", composite, Z)
-    C = Z.T @ B  # C[j, l] = Z_j · I^c_l Z_l
+    C = matmul(Z.T, B)  # C[j, l] = Z_j · I^c_l Z_l
     M = at_or_above * C + (strictly_above * C).T
     top = jnp.concatenate([jnp.sum(inertias, axis=0), B], axis=1)
     return jnp.concatenate([top, jnp.concatenate([B.T, M], axis=1)], axis=0)
@@ -476,7 +477,7 @@ class _TreeMetricJet(AbstractMetricJet):
 
     def _twists(self, Z, X):
         """$\\hat J_a x$ with the columns `Z`, for each row $x$ of `X`: shape (m, n, 6)."""
-        return X[:, None, :6] + jnp.swapaxes((Z[None] * X[:, None, 6:]) @ self.path.T, 1, 2)
+        return X[:, None, :6] + einsum("il,ml,al->mai", Z, X[:, 6:], self.path)
 
     def _subtree_sums(self, f):
         """$\\sum_{a \\succeq l} f_a$ for each column $l$ of per-body vectors `f` (m, n, 6): (m, d, 6)."""
@@ -491,10 +492,10 @@ class _TreeMetricJet(AbstractMetricJet):
         # (∂_u G)x = Σ_a Ĵ_aᵀ(ad*_{W_a} p_a + M̃_a δV_a) + [0; ∂_u Z_l · Π_l], where
         # δV_a = (∂_u Ĵ_a)x - [W_a, V_a] is the change of the body twist.
         Zu = self.Z * u
-        dZ = lie.bracket((Zu @ self.at_or_above).T, self.Z.T).T
+        dZ = lie.bracket(matmul(Zu, self.at_or_above).T, self.Z.T).T
         if self.ball_dZ is not None:
-            dZ = dZ + jnp.tensordot(u, self.ball_dZ, 1)
-        W = (Zu @ self.path.T).T  # (n, 6)
+            dZ = dZ + einsum("k,kxj->xj", u, self.ball_dZ)
+        W = einsum("il,al->ai", Zu, self.path)
         V = self._twists(self.Z, X)
         p = jnp.einsum("aij,maj->mai", self.inertias, V)
         dV = self._twists(dZ, X.at[:, :6].set(0.0)) - lie.bracket(W, V)
@@ -505,9 +506,7 @@ class _TreeMetricJet(AbstractMetricJet):
         return jnp.concatenate([jnp.sum(f, axis=1), shape], axis=1)
 
     def forms(self, X):
-        N = X[:, None, :6] + jnp.swapaxes(
-            (self.Z[None] * X[:, None, 6:]) @ self.strictly_above, 1, 2
-        )
+        N = X[:, None, :6] + einsum("ij,mj,jk->mki", self.Z, X[:, 6:], self.strictly_above)
         V = self._twists(self.Z, X)
         Pi = self._subtree_sums(jnp.einsum("aij,maj->mai", self.inertias, V))  # (m, d, 6)
         ZN = lie.bracket(self.Z.T, N)  # [Z_k, N_k(x_i)]
@@ -526,12 +525,12 @@ def _unit_screw_exp(S, theta):
     $p = (\theta + (1-\cos\theta)\tilde\omega + (\theta-\sin\theta)\tilde\omega^2)\,v$.
     """
     w_hat = lie.hat(S[..., :3])
-    w_hat2 = w_hat @ w_hat
+    w_hat2 = matmul(w_hat, w_hat)
     s, c = jnp.sin(theta)[..., None, None], (1.0 - jnp.cos(theta))[..., None, None]
     eye = jnp.eye(3, dtype=S.dtype)
     R = eye + s * w_hat + c * w_hat2
     V = theta[..., None, None] * eye + c * w_hat + (theta[..., None, None] - s) * w_hat2
-    return _pose(R, (V @ S[..., 3:, None])[..., 0])
+    return _pose(R, matmul(V, S[..., 3:, None])[..., 0])
 
 
 def _pose(R, p):
