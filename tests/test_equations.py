@@ -109,3 +109,17 @@ def test_rigid_body_integrates_no_shape_block():
     chain_jaxpr = _vector_field_jaxpr(bd.Scene(chain(2)), chain(2).shape_dim)
     assert _count_primitives(chain_jaxpr, {"cholesky"}) == 1
     assert _count_primitives(jaxpr) < _count_primitives(chain_jaxpr) / 4
+
+
+def test_tree_of_one_body_is_its_rigid_body():
+    """A `Multibody` with no links (d = 0) has the base's spatial inertia as its metric and
+    moves as that rigid body (Euler's equations, through the same vector field)."""
+    body = asymmetric_body()
+    tree = bd.Multibody(body, [])
+    np.testing.assert_allclose(tree.metric(jnp.zeros(0)), body.metric(jnp.zeros(0)), atol=1e-15)
+    state = bd.State(
+        jnp.eye(4), jnp.zeros(0), jnp.array([0.3, -0.2, 0.5, 0.1, 0.0, -0.1]), jnp.zeros(0)
+    )
+    a = bd.simulate(bd.Scene(tree), state, 1.0, rtol=1e-10, atol=1e-12)
+    b = bd.simulate(bd.Scene(body), state, 1.0, rtol=1e-10, atol=1e-12)
+    np.testing.assert_allclose(a.g[-1], b.g[-1], atol=1e-12)

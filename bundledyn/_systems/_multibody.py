@@ -432,7 +432,7 @@ def _column_tables(t: _Tree) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
             A[[k for k, m in enumerate(node_of_column) if m == node], j] = 1.0
             node = t.node_parent[node]
     same_node = np.equal.outer(node_of_column, node_of_column)
-    path = np.array(t.path_mask, dtype=float).reshape(-1, t.shape_dim)
+    path = np.array(t.path_mask, dtype=float).reshape(len(t.path_mask), t.shape_dim)
     return path, A, A * ~same_node
 
 
