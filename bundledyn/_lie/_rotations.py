@@ -13,7 +13,6 @@ parameterization is singular somewhere; the docstrings say where.
 import jax
 import jax.numpy as jnp
 
-from .._linalg import matmul
 from ._so3 import _float, _sq, so3_hat, so3_log, so3_vee
 
 __all__ = [
@@ -71,7 +70,7 @@ def rotation_from_vector_parameter(c):
     c = _float(c)
     C = so3_hat(c)
     k = 2.0 / (1.0 + _sq(c))
-    return _eye(c.shape[:-1], c.dtype) + k[..., None, None] * (C + matmul(C, C))
+    return _eye(c.shape[:-1], c.dtype) + k[..., None, None] * (C + C @ C)
 
 
 def vector_parameter_from_rotation(R):
@@ -147,7 +146,7 @@ def rotation_from_axis_angle(e, chi):
     s = jnp.sin(chi)[..., None, None]
     vc = (1.0 - jnp.cos(chi))[..., None, None]
     batch = jnp.broadcast_shapes(e.shape[:-1], chi.shape)
-    return _eye(batch, e.dtype) + vc * matmul(E, E) + s * E
+    return _eye(batch, e.dtype) + vc * (E @ E) + s * E
 
 
 def axis_angle_from_rotation(R):
