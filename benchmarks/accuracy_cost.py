@@ -663,11 +663,11 @@ def time_to_error_table(series_list):
                 cells.append("–")
         lines.append(f"| {series['method']} | " + " | ".join(cells) + " |")
     peer = next((s for s in series_list if s["method"] == "MuJoCo RK4"), None)
-    default = next((s for s in series_list if s["method"] == "RKMK54"), None)
-    if peer and default:
+    rkmk54 = next((s for s in series_list if s["method"] == "RKMK54"), None)
+    if peer and rkmk54:
         ratios = []
         for target in TARGETS:
-            a, b = time_at_error(default, target), time_at_error(peer, target)
+            a, b = time_at_error(rkmk54, target), time_at_error(peer, target)
             ratios.append("–" if a is None or b is None else f"{a / b:.2g}")
         lines.append("| **RKMK54 / MuJoCo RK4** | " + " | ".join(ratios) + " |")
     return lines
@@ -726,9 +726,9 @@ def markdown(report):
             "",
         ]
         lines += time_to_error_table(result["series"]) + [""]
-        default = next((s for s in result["series"] if s["method"] == "RKMK54"), None)
-        if default:
-            costs = digit_costs(default)
+        rkmk54 = next((s for s in result["series"] if s["method"] == "RKMK54"), None)
+        if rkmk54:
+            costs = digit_costs(rkmk54)
             if costs:
                 lines.append(
                     "RKMK 5(4), cost of each extra digit: "

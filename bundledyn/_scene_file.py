@@ -412,7 +412,7 @@ class SceneFile:
     - `[initial]` `position`, `rotation` (rotation vector), `q`, `qdot`, and `xi` (6 numbers,
       angular first) or `"zero_momentum"` for $\\xi = -A(q)\\dot q$.
     - `[time]` `t1` (required), `t0` (0), `saves` (saved times, evenly spaced; 101).
-    - `[solver]` `method` (`RKMK54` default, `RKMK87`, `RKMK4`, `LieEuler`,
+    - `[solver]` `method` (`RKMK87` default, `RKMK54`, `RKMK4`, `LieEuler`,
       `VariationalMidpoint`, `Tsit5`, `Dopri5`, `Dopri8`, `Kvaerno5`), `rtol`, `atol`,
       `dt0` (required by the fixed-step methods), `max_steps`.
     - `[output]` `trajectory` (`.npz` name; default the scene's name), `plots` (true),
@@ -471,7 +471,7 @@ class SceneFile:
         state = _state(root.table("initial", {}), system, shape, t0)
 
         solver_table = root.table("solver", {})
-        method = solver_table.string("method", "RKMK54", set(SOLVERS))
+        method = solver_table.string("method", "RKMK87", set(SOLVERS))
         make, fixed = SOLVERS[method]
         options = {
             "rtol": solver_table.number("rtol", 1e-8),

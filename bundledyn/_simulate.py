@@ -8,7 +8,7 @@ import jax.numpy as jnp
 from ._geometry import connection
 from ._precision import warn_if_tolerance_too_tight
 from ._scene import Prescribed, Scene, SceneTerm
-from ._solver._rkmk import RKMK54, AbstractRKMK
+from ._solver._rkmk import RKMK87, AbstractRKMK
 from ._solver._variational import VariationalMidpoint
 from ._state import State
 from ._trajectory import Trajectory
@@ -78,7 +78,7 @@ def simulate(
     - `scene`: the `Scene` (system, effects, shape mode, frame).
     - `state0`: the initial `State` (for a `Prescribed` shape, q and qdot are taken from it).
     - `t1`, `t0`: end and start times.
-    - `solver`: a Lie-group solver (`RKMK54` default, `RKMK4`, `LieEuler`,
+    - `solver`: a Lie-group solver (`RKMK87` default, `RKMK54`, `RKMK4`, `LieEuler`,
       `VariationalMidpoint`) or any diffrax solver, which then integrates the pose in its
       4×4 embedding: there its rotation drifts off SO(3) by the solver's error, so the saved
       poses are projected back (`project_to_se3`) and the drift before projection is
@@ -95,7 +95,7 @@ def simulate(
 
     A `Trajectory`.
     """
-    solver = RKMK54() if solver is None else solver
+    solver = RKMK87() if solver is None else solver
     y0 = initial_condition(scene, state0, t0)
     warn_if_tolerance_too_tight(rtol, y0[0].dtype)
     if _is_adaptive(solver):

@@ -54,7 +54,7 @@ def test_run_writes_trajectory_with_its_scene(ran):
     data = np.load(out / "spin.npz")
     assert str(data["scene"]) == scene.read_text()
     metadata = json.loads(str(data["metadata"]))
-    assert metadata["solver"] == "RKMK54" and metadata["bundledyn"] == bd.__version__
+    assert metadata["solver"] == "RKMK87" and metadata["bundledyn"] == bd.__version__
     assert data["g"].shape == (41, 4, 4) and data["q"].shape == (41, 0)
     np.testing.assert_allclose(data["ts"], np.linspace(0.0, 4.0, 41))
     # Torque-free: energy and spatial momentum conserved (to the solver's tolerance).

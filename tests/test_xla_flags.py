@@ -33,6 +33,7 @@ def test_flags_are_added_before_the_backend_starts_and_user_flags_are_kept():
     assert done.stdout.split() == [
         "--xla_cpu_multi_thread_eigen=true",
         "--xla_cpu_use_fusion_emitters=false",
+        "--xla_cpu_enable_concurrency_optimized_scheduler=false",
     ]
 
 

@@ -168,8 +168,9 @@ class RKMK4(AbstractRKMK):
 class RKMK54(AbstractRKMK, AbstractAdaptiveSolver):
     r"""Runge–Kutta–Munthe-Kaas method with the Dormand–Prince 5(4) tableau.
 
-    The default adaptive Lie-group solver. Fifth order, with an embedded fourth-order
-    error estimate measured in the Lie algebra (see `AbstractRKMK`), so it works with
+    For loose tolerances (about 1e-3 to 1e-5), where its seven evaluations per step cost less
+    than `RKMK87`'s fourteen. Fifth order, with an embedded fourth-order error estimate
+    measured in the Lie algebra (see `AbstractRKMK`), so it works with
     `diffrax.PIDController`. Seven stages, all evaluated every step (see `AbstractRKMK`
     for why the FSAL stage is not reused). Dense output: the fourth-order quartic of
     `diffrax.Dopri5`, applied in the algebra chart, so it stays on the group.
@@ -216,15 +217,19 @@ class RKMK54(AbstractRKMK, AbstractAdaptiveSolver):
 class RKMK87(AbstractRKMK, AbstractAdaptiveSolver):
     r"""Runge–Kutta–Munthe-Kaas method with the Dormand–Prince 8(7) tableau.
 
-    For tight tolerances. Eighth order, with an embedded seventh-order error estimate
-    measured in the Lie algebra (see `AbstractRKMK`), so it works with
+    The default of `bundledyn.simulate`. Eighth order, with an embedded seventh-order error
+    estimate measured in the Lie algebra (see `AbstractRKMK`), so it works with
     `diffrax.PIDController`. A step costs 14 field evaluations, twice `RKMK54`'s 7 (the
     13 stages of the method and the FSAL stage, all evaluated every step, see
     `AbstractRKMK`), but at tight tolerances it takes far fewer steps, so it needs fewer
     evaluations per unit accuracy. On the two problems of `tests/test_solvers.py` at
     rtol = atol = 1e-10: 13-16 accepted steps (210-252 evaluations) against 74-81
     (532-588), with a global error of 1.6e-10 against 8e-10 to 1e-9; at 1e-6 both cost
-    105-126 evaluations, RKMK87 with an error 8x smaller.
+    105-126 evaluations, RKMK87 with an error 8x smaller. At `simulate`'s default
+    rtol = atol = 1e-8 it is faster and more accurate than `RKMK54` on the 5-body chain of
+    `benchmarks/speed.py` and on the Dzhanibekov body, there also between steps
+    (`tests/test_simulate.py`), and its tableau on the embedding (`diffrax.Dopri8`) is faster
+    than RKMK54 on every problem of `benchmarks/accuracy_cost.py`: hence the default.
 
     Dense output: the sextic of `diffrax.Dopri8` (which cites Bogacki & Shampine 1990),
     built on the 14 stages without extra ones, in the algebra chart, so it stays on the

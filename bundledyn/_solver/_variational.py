@@ -64,7 +64,7 @@ class VariationalMidpoint(AbstractSolver):
         if scene.frame is not None or not isinstance(scene.shape, Free):
             raise ValueError(
                 "VariationalMidpoint integrates scenes in the Galilean frame with a free shape; "
-                "use RKMK54 for moving frames or prescribed shapes."
+                "use RKMK87 (the default) for moving frames or prescribed shapes."
             )
         return None
 
