@@ -26,8 +26,9 @@ def use_cpu_xla_flags() -> bool:
       runs of five at 64–70); 1024 vmapped 5-body rollouts 552–607 against 442–570 per
       second; compile times unchanged.
 
-    Measured together against XLA's defaults (`benchmarks/results/speed.md`): one vector
-    field 1.2–2× faster (1 to 20 bodies), 1024 vmapped rollouts 2.5× faster.
+    Measured together against XLA's defaults (`benchmarks/results/speed.md`), across the
+    runs of 2026-11-22: one vector field 1.2–2.7× faster (1 to 20 bodies), 1024 vmapped
+    rollouts 2.5–2.8× faster.
 
     A flag already present in `XLA_FLAGS` (either value) is left as the user set it. XLA
     reads the variable once, when the first computation starts the backend; called later,
