@@ -160,10 +160,6 @@ def blocking(fn, *args):
     return sample
 
 
-def scaled(stats, factor):
-    return {k: v * factor for k, v in stats.items()}
-
-
 # ------------------------------------------------------------------------------- MuJoCo
 
 

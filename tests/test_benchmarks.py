@@ -34,3 +34,21 @@ def test_speed_report_redraws_from_its_json(tmp_path):
     rows = speed.targets(report)
     assert len(rows) >= 10 and all(isinstance(met, bool) for *_, met in rows)
     assert all(f"| {what} |" in text for what, *_ in rows)
+
+
+def test_speed_times_both_sides_in_alternation():
+    """`interleaved` calls every sampler once per round, in reverse order every other round,
+    so the two sides of a ratio share the machine's slow phases; a sampler's own
+    measurement is kept as it returns it."""
+    from benchmarks import speed
+
+    calls = []
+
+    def sampler(name, seconds=None):
+        return lambda: calls.append(name) or seconds
+
+    timings = speed.interleaved({"a": sampler("a", 2.0), "b": sampler("b")}, repeats=3)
+    assert calls == ["a", "b", "a", "b", "b", "a", "a", "b"]  # warm-up, then rounds
+    (first_a, runs_a), (_, runs_b) = timings["a"], timings["b"]
+    assert first_a == 2.0 and runs_a == {"median": 2.0, "min": 2.0, "max": 2.0}
+    assert 0.0 <= runs_b["min"] <= runs_b["median"] <= runs_b["max"] < 1.0
