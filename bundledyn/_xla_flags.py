@@ -20,11 +20,11 @@ def use_cpu_xla_flags() -> bool:
       vector field are far too small to share between threads.
     - `--xla_cpu_enable_concurrency_optimized_scheduler=false`: XLA's default schedule
       lets its runtime run the field's ~100 tiny kernels on several threads, and handing a
-      kernel to another core costs more than running it, so timings turn bimodal (the slow
-      mode never appears in a process pinned to one core). Five alternating processes each
-      on 2 cores: a 20-body field 38.5–39.4 µs with the flag, 38.7–69.5 µs without (three
-      runs of five at 64–70); 1024 vmapped 5-body rollouts 552–607 against 442–570 per
-      second; compile times unchanged.
+      kernel to another core costs more than running it, so timings turn bimodal. Five
+      alternating processes each on 2 cores: a 20-body field 38.5–39.4 µs with the flag,
+      38.7–69.5 µs without (three runs of five at 64–70); 1024 vmapped 5-body rollouts
+      552–607 against 442–570 per second; compile times unchanged. (A shared machine's
+      slow phases remain either way, pinned to one core too.)
 
     Measured together against XLA's defaults (`benchmarks/results/speed.md`), across the
     runs of 2026-11-22: one vector field 1.2–2.7× faster (1 to 20 bodies), 1024 vmapped

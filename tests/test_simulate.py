@@ -96,7 +96,6 @@ def test_default_solver_is_the_cheaper_and_more_accurate_at_default_tolerance():
         ]
         stages = (solver or bd.RKMK87()).tableau.num_stages
         evaluations[name] = int(traj.stats["num_steps"]) * stages
-    print(errors, evaluations)
     assert errors["default"][-1] < errors["RKMK54"][-1]
     assert max(errors["default"][:-1]) < max(errors["RKMK54"][:-1])
     assert evaluations["default"] < evaluations["RKMK54"]
