@@ -356,6 +356,29 @@ def test_rkmk87_fewer_steps(problem):
     assert 2 * evaluations["RKMK87"] < evaluations["RKMK54"]
 
 
+def _step_scan_lengths(solver, args):
+    """Lengths of the `lax.scan`s in one traced step: the stage loop's is the stage count."""
+    step = lambda y: solver.step(TERM, 0.0, 0.1, y, args, None, False)  # noqa: E731
+    jaxpr = jax.make_jaxpr(step)(_f64(Y0))
+    return [e.params["length"] for e in jaxpr.jaxpr.eqns if e.primitive.name == "scan"]
+
+
+def test_dense_output_off_skips_the_dense_only_stage():
+    """`RKMK87(dense_output=False)` evaluates 13 stages instead of 14 (the 14th enters
+    neither the solution nor the error estimate), takes the same steps to the same states,
+    and its dense output is NaN rather than silently wrong."""
+    args = PROBLEMS["coupled"]
+    assert _step_scan_lengths(RKMK87(), _f64(args)) == [14]
+    assert _step_scan_lengths(RKMK87(dense_output=False), _f64(args)) == [13]
+    with_dense = solve(RKMK87(), pid(1e-8), args)
+    without = solve(RKMK87(dense_output=False), pid(1e-8), args)
+    for a, b in zip(at_steps(with_dense), at_steps(without), strict=True):
+        for leaf_a, leaf_b in zip(jax.tree.leaves(a), jax.tree.leaves(b), strict=True):
+            np.testing.assert_array_equal(leaf_a, leaf_b)
+    assert all(np.all(np.isnan(leaf)) for leaf in jax.tree.leaves(without.ys[2]))
+    assert all(np.all(np.isfinite(leaf)) for leaf in jax.tree.leaves(with_dense.ys[2]))
+
+
 def test_rigid_body_invariants():
     sol = solve(RKMK54(), pid(1e-12), PROBLEMS["rigid"])
     _, ys = at_steps(sol)

@@ -2,7 +2,9 @@ r"""The Lie–Euler method: the one-stage Runge–Kutta–Munthe-Kaas method."""
 
 from typing import ClassVar
 
-from ._rkmk import AbstractRKMK
+import equinox as eqx
+
+from ._rkmk import RKMK87, AbstractRKMK
 from ._tableau import LieButcherTableau, euler_tableau
 
 __all__ = ["LieEuler"]
@@ -34,10 +36,11 @@ class LieEuler(AbstractRKMK):
     """
 
     tableau: ClassVar[LieButcherTableau] = euler_tableau
+    dense_output: bool = eqx.field(default=True, static=True)
 
     def order(self, terms):
         del terms
         return 1
 
 
-LieEuler.__init__.__doc__ = """**Arguments:** None"""
+LieEuler.__init__.__doc__ = RKMK87.__init__.__doc__

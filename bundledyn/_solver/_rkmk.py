@@ -24,6 +24,7 @@ read off the field as $\xi_i = (g_i^{-1}\dot g_i)^\vee$; matrices are never adde
 
 from typing import ClassVar
 
+import equinox as eqx
 import jax
 import jax.lax as lax
 import jax.numpy as jnp
@@ -73,13 +74,19 @@ class AbstractRKMK(AbstractSolver):
       451 ms (medians of 7); compiling it for the 20-body chain 32–40 s against 37–44 s;
       forward solves and `vmap`ped batches as fast as before.
     - Dense output: `LieLocalInterpolation`, the tableau's continuous extension in the
-      chart $g_0\exp\hat\Theta$, which stays on the group.
+      chart $g_0\exp\hat\Theta$, which stays on the group. With `dense_output=False` a
+      step evaluates only the stages that the solution and the error estimate use
+      (`RKMK87`: 13 of its 14; the other tableaus use all their stages) and its dense
+      output is NaN: `bundledyn.simulate` sets it when nothing interpolates (no
+      `SaveAt(ts=...)`, no `SaveAt(dense=True)`, no event). The saved states are the same
+      either way.
 
     Valid while the rotation part of the algebra increments stays below $2\pi$
     (where $\mathrm{dexp}^{-1}$ is singular); an adaptive controller keeps it far below.
     """
 
     tableau: ClassVar[LieButcherTableau]
+    dense_output: eqx.AbstractVar[bool]
     term_structure: ClassVar = AbstractTerm
     interpolation_cls: ClassVar = LieLocalInterpolation
 
@@ -118,7 +125,8 @@ class AbstractRKMK(AbstractSolver):
         # Rematerialized under reverse mode: the scan then stores each stage's inputs, not
         # the field's intermediates stacked over the stages (see the class docstring).
         stage = jax.checkpoint(stage, prevent_cse=False)  # a scan body needs no CSE barrier
-        (kappas, ks), _ = lax.scan(stage, (kappas0, ks0), jnp.arange(s), length=s)
+        n = s if self.dense_output else tab.step_stages
+        (kappas, ks), _ = lax.scan(stage, (kappas0, ks0), jnp.arange(n), length=n)
 
         b = jnp.asarray(tab.b_sol, dtype=dtype)
         y1 = from_chart(g0, rest0, treedef, _combine(b, kappas), [_combine(b, k) for k in ks])
@@ -130,8 +138,13 @@ class AbstractRKMK(AbstractSolver):
             err_leaves = [lie.hat(_combine(e, kappas))] + [_combine(e, k) for k in ks]
             y_error = jtu.tree_unflatten(treedef, err_leaves)
 
-        d = jnp.asarray(tab.dense, dtype=dtype)
-        coeffs = jtu.tree_unflatten(treedef, [_combine(d, kappas)] + [_combine(d, k) for k in ks])
+        if self.dense_output:
+            d = jnp.asarray(tab.dense, dtype=dtype)
+            coeffs = [_combine(d, kappas)] + [_combine(d, k) for k in ks]
+        else:  # stages were skipped: an interpolation would be wrong, so make it NaN
+            degree = tab.dense.shape[0]
+            coeffs = [jnp.full((degree, *k.shape[1:]), jnp.nan, k.dtype) for k in (kappas, *ks)]
+        coeffs = jtu.tree_unflatten(treedef, coeffs)
         dense_info = dict(y0=y0, coeffs=coeffs)
         return y1, y_error, dense_info, None, RESULTS.successful
 
@@ -169,6 +182,7 @@ class RKMK4(AbstractRKMK):
     """
 
     tableau: ClassVar[LieButcherTableau] = rk4_tableau
+    dense_output: bool = eqx.field(default=True, static=True)
 
     def order(self, terms):
         del terms
@@ -218,6 +232,7 @@ class RKMK54(AbstractRKMK, AbstractAdaptiveSolver):
     """
 
     tableau: ClassVar[LieButcherTableau] = dopri5_tableau
+    dense_output: bool = eqx.field(default=True, static=True)
 
     def order(self, terms):
         del terms
@@ -231,8 +246,9 @@ class RKMK87(AbstractRKMK, AbstractAdaptiveSolver):
     estimate measured in the Lie algebra (see `AbstractRKMK`), so it works with
     `diffrax.PIDController`. A step costs 14 field evaluations, twice `RKMK54`'s 7 (the
     13 stages of the method and the FSAL stage, all evaluated every step, see
-    `AbstractRKMK`), but at tight tolerances it takes far fewer steps, so it needs fewer
-    evaluations per unit accuracy. On the two problems of `tests/test_solvers.py` at
+    `AbstractRKMK`), or 13 with `dense_output=False` (the FSAL stage serves only the dense
+    output, which `simulate` skips when nothing interpolates), but at tight tolerances it
+    takes far fewer steps, so it needs fewer evaluations per unit accuracy. On the two problems of `tests/test_solvers.py` at
     rtol = atol = 1e-10: 13-16 accepted steps (210-252 evaluations) against 74-81
     (532-588), with a global error of 1.6e-10 against 8e-10 to 1e-9; at 1e-6 both cost
     105-126 evaluations, RKMK87 with an error 8x smaller. At `simulate`'s default
@@ -284,12 +300,15 @@ class RKMK87(AbstractRKMK, AbstractAdaptiveSolver):
     """
 
     tableau: ClassVar[LieButcherTableau] = dopri8_tableau
+    dense_output: bool = eqx.field(default=True, static=True)
 
     def order(self, terms):
         del terms
         return 8
 
 
-RKMK4.__init__.__doc__ = """**Arguments:** None"""
-RKMK54.__init__.__doc__ = """**Arguments:** None"""
-RKMK87.__init__.__doc__ = """**Arguments:** None"""
+RKMK4.__init__.__doc__ = RKMK54.__init__.__doc__ = RKMK87.__init__.__doc__ = """**Arguments:**
+
+- `dense_output`: whether steps evaluate the stages that only the dense output uses
+  (`SaveAt(ts=...)`, `SaveAt(dense=True)`, events); see `AbstractRKMK`.
+"""

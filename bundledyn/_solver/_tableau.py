@@ -40,9 +40,10 @@ class LieButcherTableau:
         (the difference between the propagated and the embedded solution, as in
         `diffrax.ButcherTableau`); `None` for a method without an error estimate.
 
-    Derived: `num_stages`, `fsal` (the last stage is evaluated at the propagated
-    solution: $a_{s,j} = b_j$, $b_s = 0$, $c_s = 1$), the full `(s, s)` matrix `a` and
-    the full node vector `c_full`.
+    Derived: `num_stages`, `step_stages` (the leading stages that the propagated solution
+    and the error estimate use; later ones serve the dense output only), `fsal` (the last
+    stage is evaluated at the propagated solution: $a_{s,j} = b_j$, $b_s = 0$, $c_s = 1$),
+    the full `(s, s)` matrix `a` and the full node vector `c_full`.
     """
 
     a_lower: tuple[np.ndarray, ...]
@@ -52,6 +53,7 @@ class LieButcherTableau:
     b_error: np.ndarray | None = None
 
     num_stages: int = field(init=False)
+    step_stages: int = field(init=False)
     fsal: bool = field(init=False)
     a: np.ndarray = field(init=False)
     c_full: np.ndarray = field(init=False)
@@ -78,7 +80,9 @@ class LieButcherTableau:
             and bool(np.all(self.a_lower[-1] == self.b_sol[:-1]))
             and self.c[-1] == 1
         )
+        used = (self.b_sol != 0) | (0 if self.b_error is None else self.b_error != 0)
         object.__setattr__(self, "num_stages", s)
+        object.__setattr__(self, "step_stages", int(np.flatnonzero(used)[-1]) + 1)
         object.__setattr__(self, "fsal", fsal)
         object.__setattr__(self, "a", a)
         object.__setattr__(self, "c_full", np.concatenate([np.zeros(1), self.c]))
