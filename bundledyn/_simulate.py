@@ -1,14 +1,18 @@
 """`simulate`: integrate a scene from an initial state with diffrax."""
 
+import dataclasses
+
 import diffrax
 import equinox as eqx
 import jax
 import jax.numpy as jnp
+import jax.tree_util as jtu
 
 from ._geometry import connection
 from ._precision import warn_if_tolerance_too_tight
 from ._scene import Prescribed, Scene, SceneTerm
 from ._solver._rkmk import RKMK87, AbstractRKMK
+from ._solver._starting_step import starting_step
 from ._solver._variational import VariationalMidpoint
 from ._state import State
 from ._trajectory import Trajectory
@@ -50,6 +54,12 @@ def _orthogonality_error(g):
     return jnp.max(jnp.abs(jnp.swapaxes(R, -1, -2) @ R - jnp.eye(3)))
 
 
+def _interpolates(saveat: diffrax.SaveAt, event) -> bool:
+    """Whether the solve evaluates the solver's dense output (saving between steps, events)."""
+    subs = jtu.tree_leaves(saveat.subs, is_leaf=lambda s: isinstance(s, diffrax.SubSaveAt))
+    return saveat.dense or event is not None or any(s.ts is not None for s in subs)
+
+
 def _is_adaptive(solver) -> bool:
     return isinstance(solver, diffrax.AbstractAdaptiveSolver) or getattr(solver, "adaptive", False)
 
@@ -83,9 +93,16 @@ def simulate(
       4×4 embedding: there its rotation drifts off SO(3) by the solver's error, so the saved
       poses are projected back (`project_to_se3`) and the drift before projection is
       reported as `stats["embedding_drift"]`.
-    - `rtol`, `atol`: tolerances of the PID step-size controller (adaptive solvers).
-    - `dt0`: the initial step; required by fixed-step solvers, where it is the step.
-    - `saveat`: a `diffrax.SaveAt`; default saves at `t0` and `t1`.
+    - `rtol`, `atol`: tolerances of the step-size controller (adaptive solvers), a
+      `diffrax.PIDController` with Gustafsson's PI coefficients (`pcoeff=0.4`,
+      `icoeff=0.3`).
+    - `dt0`: the initial step; required by fixed-step solvers, where it is the step. For
+      adaptive ones it defaults to Hairer, Nørsett & Wanner's starting step
+      (`starting_step`, two extra field evaluations), not diffrax's fixed 0.01.
+    - `saveat`: a `diffrax.SaveAt`; default saves at `t0` and `t1`. When it saves only
+      at `t0`, `t1` or the steps and there is no `event`, a Lie-group solver skips the
+      stages that only its dense output uses (`AbstractRKMK`'s `dense_output`): `RKMK87`
+      then evaluates the field 13 times per step instead of 14.
     - `adjoint`: a diffrax adjoint (default `RecursiveCheckpointAdjoint`).
     - `event`: an optional `diffrax.Event` to stop at.
     - `max_steps`: step budget; running out raises (or, with `throw=False`, sets `result`).
@@ -96,22 +113,33 @@ def simulate(
     A `Trajectory`.
     """
     solver = RKMK87() if solver is None else solver
+    saveat = diffrax.SaveAt(t0=True, t1=True) if saveat is None else saveat
+    if isinstance(solver, AbstractRKMK) and not _interpolates(saveat, event):
+        solver = dataclasses.replace(solver, dense_output=False)
     y0 = initial_condition(scene, state0, t0)
     warn_if_tolerance_too_tight(rtol, y0[0].dtype)
+    term = SceneTerm(scene)
     if _is_adaptive(solver):
-        controller = diffrax.PIDController(rtol=rtol, atol=atol)
+        # Gustafsson's PI controller (Hairer & Wanner, Solving ODEs II, §IV.2; diffrax's
+        # docstring lists it): diffrax's default I controller rejected a quarter of RKMK87's
+        # steps on the 5-body chain of `benchmarks/speed.py` (18 of 75 at rtol 1e-7).
+        controller = diffrax.PIDController(rtol=rtol, atol=atol, pcoeff=0.4, icoeff=0.3)
+        if dt0 is None:
+            order = solver.error_order(term)
+            h = starting_step(term, t0, y0, None, error_order=order, rtol=rtol, atol=atol)
+            dt0 = jnp.where(t1 >= t0, h, -h)
     else:
         if dt0 is None:
             raise ValueError(f"{type(solver).__name__} takes fixed steps: pass `dt0`.")
         controller = diffrax.ConstantStepSize()
     sol = diffrax.diffeqsolve(
-        SceneTerm(scene),
+        term,
         solver,
         t0,
         t1,
         dt0,
         y0,
-        saveat=diffrax.SaveAt(t0=True, t1=True) if saveat is None else saveat,
+        saveat=saveat,
         stepsize_controller=controller,
         adjoint=diffrax.RecursiveCheckpointAdjoint() if adjoint is None else adjoint,
         event=event,

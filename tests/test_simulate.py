@@ -307,3 +307,42 @@ def test_stock_diffrax_solver_on_the_embedding():
         np.testing.assert_allclose(traj.g[-1, :3, :3], R_exact, atol=1e-5)
     assert lie_group.orthogonality_error().max() < 1e-13 < stock.stats["embedding_drift"]
     assert stock.orthogonality_error().max() < 1e-13  # the saved poses are projected
+
+
+def _scan_lengths(fn, *args):
+    """Lengths of every `lax.scan` in the traced program, nested ones included."""
+
+    def walk(jaxpr):
+        for eqn in jaxpr.eqns:
+            if eqn.primitive.name == "scan":
+                yield eqn.params["length"]
+            for param in eqn.params.values():
+                for sub in param if isinstance(param, tuple | list) else (param,):
+                    if isinstance(sub, jax.extend.core.ClosedJaxpr):
+                        yield from walk(sub.jaxpr)
+                    elif isinstance(sub, jax.extend.core.Jaxpr):
+                        yield from walk(sub)
+
+    return set(walk(jax.make_jaxpr(fn)(*args).jaxpr))
+
+
+def test_simulate_skips_the_dense_only_stage_when_nothing_interpolates():
+    """Saving at t0, t1 or the steps, the default RKMK87 steps evaluate 13 stages; saving
+    between steps, densely, or stopping at an event, 14 (the dense output needs the 14th)."""
+    scene = bd.Scene(bd.RigidBody(1.0, [0.0, 0.0, 0.0], np.diag(INERTIA)))
+    never = diffrax.Event(lambda t, y, args, **kwargs: t > 10.0)
+
+    def lengths(**kwargs):
+        def run(xi):
+            return bd.simulate(scene, bd.State(jnp.eye(4), xi=xi), 1.0, **kwargs).g
+
+        return _scan_lengths(run, jnp.ones(6))
+
+    for kwargs in [{}, dict(saveat=diffrax.SaveAt(steps=True))]:
+        assert 13 in lengths(**kwargs) and 14 not in lengths(**kwargs)
+    for kwargs in [
+        dict(saveat=diffrax.SaveAt(ts=jnp.linspace(0.0, 1.0, 3))),
+        dict(saveat=diffrax.SaveAt(t1=True, dense=True)),
+        dict(event=never),
+    ]:
+        assert 14 in lengths(**kwargs) and 13 not in lengths(**kwargs)
