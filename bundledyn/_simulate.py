@@ -97,8 +97,10 @@ def simulate(
       `diffrax.PIDController` with Gustafsson's PI coefficients (`pcoeff=0.4`,
       `icoeff=0.3`).
     - `dt0`: the initial step; required by fixed-step solvers, where it is the step. For
-      adaptive ones it defaults to Hairer, Nørsett & Wanner's starting step
-      (`starting_step`, two extra field evaluations), not diffrax's fixed 0.01.
+      adaptive ones it defaults to Hairer, Nørsett & Wanner's starting step (two field
+      evaluations before the stepping loop, which add one copy of the field to the
+      compiled program), not the 0.01 that diffrax 0.7 starts every solve with; pass
+      `dt0` to skip them.
     - `saveat`: a `diffrax.SaveAt`; default saves at `t0` and `t1`. When it saves only
       at `t0`, `t1` or the steps and there is no `event`, a Lie-group solver skips the
       stages that only its dense output uses (`AbstractRKMK`'s `dense_output`): `RKMK87`
