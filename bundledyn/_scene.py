@@ -156,6 +156,14 @@ class Scene(eqx.Module):
         return Kinematics(t, g, q, xi, qdot)
 
 
+@eqx.filter_jit
+def _vector_field(scene, t, y, args):
+    # A jitted call: diffrax traces a solver's step up to three times (shapes, loop body,
+    # starting step), and JAX then reuses the field's jaxpr, and under `jax.grad` its
+    # derivative, instead of tracing and differentiating the field each time.
+    return scene.vector_field(t, y, args)
+
+
 class SceneTerm(diffrax.AbstractTerm):
     """The diffrax term of a scene: its vector field, with the scene itself at hand.
 
@@ -170,7 +178,7 @@ class SceneTerm(diffrax.AbstractTerm):
     scene: Scene
 
     def vf(self, t, y, args):
-        return self.scene.vector_field(t, y, args)
+        return _vector_field(self.scene, t, y, args)
 
     def contr(self, t0, t1, **kwargs):
         return t1 - t0

@@ -24,14 +24,12 @@ def steps(xi):
 
 
 def by_hand(xi):
+    """Hairer's starting step for the ball, whose twist is constant: f1 = f0, d2 = 0."""
     g0, xi = np.asarray(G0), np.asarray(xi)
 
-    def rms(*pairs):
-        return np.sqrt(
-            np.mean(
-                np.concatenate([(v / (ATOL + RTOL * np.abs(y))).ravel() for v, y in pairs]) ** 2
-            )
-        )
+    def rms(*pairs):  # (value, the state entries that scale it)
+        ratios = [(v / (ATOL + RTOL * np.abs(y))).ravel() for v, y in pairs]
+        return np.sqrt(np.mean(np.concatenate(ratios) ** 2))
 
     d0 = rms((g0, g0), (xi, xi))
     d1 = rms((np.asarray(lie.hat(xi)), g0), (np.zeros(6), xi))

@@ -4,7 +4,7 @@ from typing import ClassVar
 
 import equinox as eqx
 
-from ._rkmk import RKMK87, AbstractRKMK
+from ._rkmk import INIT_DOC, AbstractRKMK
 from ._tableau import LieButcherTableau, euler_tableau
 
 __all__ = ["LieEuler"]
@@ -43,4 +43,4 @@ class LieEuler(AbstractRKMK):
         return 1
 
 
-LieEuler.__init__.__doc__ = RKMK87.__init__.__doc__
+LieEuler.__init__.__doc__ = INIT_DOC

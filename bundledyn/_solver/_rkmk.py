@@ -248,14 +248,15 @@ class RKMK87(AbstractRKMK, AbstractAdaptiveSolver):
     13 stages of the method and the FSAL stage, all evaluated every step, see
     `AbstractRKMK`), or 13 with `dense_output=False` (the FSAL stage serves only the dense
     output, which `simulate` skips when nothing interpolates), but at tight tolerances it
-    takes far fewer steps, so it needs fewer evaluations per unit accuracy. On the two problems of `tests/test_solvers.py` at
-    rtol = atol = 1e-10: 13-16 accepted steps (210-252 evaluations) against 74-81
-    (532-588), with a global error of 1.6e-10 against 8e-10 to 1e-9; at 1e-6 both cost
-    105-126 evaluations, RKMK87 with an error 8x smaller. At `simulate`'s default
-    rtol = atol = 1e-8 it is faster and more accurate than `RKMK54` on the 5-body chain of
-    `benchmarks/speed.py` and on the Dzhanibekov body, there also between steps
-    (`tests/test_simulate.py`), and its tableau on the embedding (`diffrax.Dopri8`) is faster
-    than RKMK54 on every problem of `benchmarks/accuracy_cost.py`: hence the default.
+    takes far fewer steps, so it needs fewer evaluations per unit accuracy. On the two
+    problems of `tests/test_solvers.py` at rtol = atol = 1e-10: 13-16 accepted steps
+    (210-252 evaluations) against 74-81 (532-588), with a global error of 1.6e-10 against
+    8e-10 to 1e-9; at 1e-6 both cost 105-126 evaluations, RKMK87 with an error 8x smaller.
+    At `simulate`'s default rtol = atol = 1e-8 it is faster and more accurate than `RKMK54`
+    on the 5-body chain of `benchmarks/speed.py` and on the Dzhanibekov body, there also
+    between steps (`tests/test_simulate.py`), and its tableau on the embedding
+    (`diffrax.Dopri8`) is faster than RKMK54 on every problem of
+    `benchmarks/accuracy_cost.py`: hence the default.
 
     Dense output: the sextic of `diffrax.Dopri8` (which cites Bogacki & Shampine 1990),
     built on the 14 stages without extra ones, in the algebra chart, so it stays on the
@@ -307,8 +308,9 @@ class RKMK87(AbstractRKMK, AbstractAdaptiveSolver):
         return 8
 
 
-RKMK4.__init__.__doc__ = RKMK54.__init__.__doc__ = RKMK87.__init__.__doc__ = """**Arguments:**
+INIT_DOC = """**Arguments:**
 
 - `dense_output`: whether steps evaluate the stages that only the dense output uses
   (`SaveAt(ts=...)`, `SaveAt(dense=True)`, events); see `AbstractRKMK`.
 """
+RKMK4.__init__.__doc__ = RKMK54.__init__.__doc__ = RKMK87.__init__.__doc__ = INIT_DOC
