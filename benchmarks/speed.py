@@ -831,6 +831,10 @@ def markdown(report):
     g, m = report["gradient"], report["memory"]
     lines += [
         "",
+        "In one process per setting, in the order of the table: the field traced for the "
+        "forward `simulate` of n = 20 is reused (not traced again) by its `jax.grad`, as in "
+        "a session that runs a model before differentiating it.",
+        "",
         "## 5. Gradients",
         "",
         f"- `jax.grad` of a loss on the {chain['t1']:g} s rollout (RecursiveCheckpointAdjoint): "
