@@ -8,6 +8,7 @@ import pytest
 import scipy.integrate
 import scipy.special
 from systems import chain, chain3_state
+from traced import scan_lengths
 
 import bundledyn as bd
 from bundledyn import lie
@@ -309,23 +310,6 @@ def test_stock_diffrax_solver_on_the_embedding():
     assert stock.orthogonality_error().max() < 1e-13  # the saved poses are projected
 
 
-def _scan_lengths(fn, *args):
-    """Lengths of every `lax.scan` in the traced program, nested ones included."""
-
-    def walk(jaxpr):
-        for eqn in jaxpr.eqns:
-            if eqn.primitive.name == "scan":
-                yield eqn.params["length"]
-            for param in eqn.params.values():
-                for sub in param if isinstance(param, tuple | list) else (param,):
-                    if isinstance(sub, jax.extend.core.ClosedJaxpr):
-                        yield from walk(sub.jaxpr)
-                    elif isinstance(sub, jax.extend.core.Jaxpr):
-                        yield from walk(sub)
-
-    return set(walk(jax.make_jaxpr(fn)(*args).jaxpr))
-
-
 def test_simulate_skips_the_dense_only_stage_when_nothing_interpolates():
     """Saving at t0, t1 or the steps, the default RKMK87 steps evaluate 13 stages; saving
     between steps, densely, or stopping at an event, 14 (the dense output needs the 14th)."""
@@ -336,7 +320,7 @@ def test_simulate_skips_the_dense_only_stage_when_nothing_interpolates():
         def run(xi):
             return bd.simulate(scene, bd.State(jnp.eye(4), xi=xi), 1.0, **kwargs).g
 
-        return _scan_lengths(run, jnp.ones(6))
+        return scan_lengths(run, jnp.ones(6))
 
     for kwargs in [{}, dict(saveat=diffrax.SaveAt(steps=True))]:
         assert 13 in lengths(**kwargs) and 14 not in lengths(**kwargs)

@@ -4,6 +4,7 @@ import equinox as eqx
 import jax.lax as lax
 import jax.numpy as jnp
 import jax.tree_util as jtu
+import optimistix as optx
 
 from .. import lie
 from ._state import from_chart, split, twist_of_tangent
@@ -12,9 +13,9 @@ __all__ = ["starting_step"]
 
 
 def _scaled_rms(leaves, scales):
-    """RMS norm of the leaves divided elementwise by their scales (diffrax's error norm)."""
-    ratios = [jnp.ravel(v / s) for v, s in zip(leaves, scales, strict=True)]
-    return jnp.sqrt(jnp.mean(jnp.square(jnp.concatenate(ratios))))
+    """RMS norm of the leaves divided elementwise by their scales: the error norm of
+    `diffrax.PIDController` (`optx.rms_norm`)."""
+    return optx.rms_norm([v / s for v, s in zip(leaves, scales, strict=True)])
 
 
 def starting_step(term, t0, y0, args, *, error_order, rtol, atol):
