@@ -3,11 +3,26 @@
 import os
 import warnings
 
-CPU_XLA_FLAGS = (
-    "--xla_cpu_use_fusion_emitters=false",
-    "--xla_cpu_multi_thread_eigen=false",
-    "--xla_cpu_enable_concurrency_optimized_scheduler=false",
-)
+from jaxlib.version import __version_info__ as _JAXLIB_VERSION
+
+# XLA aborts the whole process on a flag it does not know (`Unknown flag in XLA_FLAGS`),
+# so a flag XLA has removed must not be passed. jaxlib 0.11 removed the switch back to the
+# older CPU emitters: jaxlib 0.11.2 aborts on it (seen 2026-11-22), 0.10.2 accepts it.
+_LAST_JAXLIB = {"--xla_cpu_use_fusion_emitters=false": (0, 10)}
+
+
+def _cpu_xla_flags(jaxlib_version: tuple[int, ...]) -> tuple[str, ...]:
+    """bundledyn's XLA CPU flags that a jaxlib of this `(major, minor, …)` version knows."""
+    flags = (
+        "--xla_cpu_use_fusion_emitters=false",
+        "--xla_cpu_multi_thread_eigen=false",
+        "--xla_cpu_enable_concurrency_optimized_scheduler=false",
+    )
+    release = tuple(jaxlib_version[:2])
+    return tuple(flag for flag in flags if release <= _LAST_JAXLIB.get(flag, release))
+
+
+CPU_XLA_FLAGS = _cpu_xla_flags(_JAXLIB_VERSION)
 
 
 def use_cpu_xla_flags() -> bool:
@@ -25,6 +40,9 @@ def use_cpu_xla_flags() -> bool:
       38.7–69.5 µs without (three runs of five at 64–70); 1024 vmapped 5-body rollouts
       552–607 against 442–570 per second; compile times unchanged. (A shared machine's
       slow phases remain either way, pinned to one core too.)
+
+    The first flag is left out with jaxlib 0.11 and later, whose XLA no longer has it and
+    would abort on it; `CPU_XLA_FLAGS` holds the flags for the installed jaxlib.
 
     Measured together against XLA's defaults (`benchmarks/results/speed.md`), across the
     runs of 2026-11-22: one vector field 1.2–2.7× faster (1 to 20 bodies), 1024 vmapped

@@ -30,11 +30,22 @@ def test_flags_are_added_before_the_backend_starts_and_user_flags_are_kept():
     done = subprocess.run(
         [sys.executable, "-c", _FRESH], env=env, capture_output=True, text=True, check=True
     )
-    assert done.stdout.split() == [
-        "--xla_cpu_multi_thread_eigen=true",
-        "--xla_cpu_use_fusion_emitters=false",
-        "--xla_cpu_enable_concurrency_optimized_scheduler=false",
-    ]
+    added = [f for f in bd.CPU_XLA_FLAGS if not f.startswith("--xla_cpu_multi_thread_eigen")]
+    assert done.stdout.split() == ["--xla_cpu_multi_thread_eigen=true", *added]
+    assert "--xla_cpu_enable_concurrency_optimized_scheduler=false" in added
+
+
+@pytest.mark.parametrize(
+    "jaxlib, has_emitter_switch", [((0, 10, 2), True), ((0, 11, 0), False), ((0, 11, 2), False)]
+)
+def test_no_flag_that_the_installed_xla_would_abort_on(jaxlib, has_emitter_switch):
+    """jaxlib 0.11.2's XLA aborts the process on `--xla_cpu_use_fusion_emitters` (an
+    unknown flag there); 0.10.2's takes it. The other two flags are known to both."""
+    from bundledyn._xla_flags import _cpu_xla_flags
+
+    flags = _cpu_xla_flags(jaxlib)
+    assert ("--xla_cpu_use_fusion_emitters=false" in flags) is has_emitter_switch
+    assert len(flags) == 2 + has_emitter_switch
 
 
 def test_after_the_backend_started_nothing_changes_and_it_warns(monkeypatch):
