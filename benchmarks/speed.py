@@ -32,6 +32,11 @@ Usage, from the repository root (needs the `bench` extra for MuJoCo)::
     python -m benchmarks.speed                 # full run; writes results/speed.{md,json}
     python -m benchmarks.speed --quick         # small sizes, 2 repeats, prints only
     python -m benchmarks.speed --report-only   # redraw the markdown from the JSON
+    python -m benchmarks.speed --device-batch  # part 3 on a GPU: results/speed_gpu.{md,json}
+
+`--device-batch` runs on JAX's default device at the tolerances of the committed CPU run,
+with MuJoCo on the host's CPU, for 1024 to 65536 rollouts, and reruns the first 64 on the
+host's CPU to show that the device computes the same trajectories.
 """
 
 import argparse
@@ -54,6 +59,7 @@ TARGET_ERROR = 1e-10
 LOOP_EVALS = 1000
 BATCH = 1024
 MEMORY_STEPS = 100_000
+DEVICE_BATCHES = (1024, 8192, 65536)  # `--device-batch`
 SOLVERS = ("RKMK87", "RKMK54")  # bundledyn's methods in parts 2 and 3; the first is the default
 
 
@@ -427,9 +433,9 @@ def chain_ten_seconds(repeats, quick):
     return rows
 
 
-def batch_sampler(method, rtol, t1):
-    """Part 3: `(sampler, mean steps)` of `jax.vmap` over `BATCH` rollouts of the 5-body
-    chain with solver `method`."""
+def batch_rollout(method, rtol, t1, batch):
+    """Part 3: `(run, xi)`: a jitted `jax.vmap` of 5-body chain rollouts with solver
+    `method`, returning final poses and step counts, and its input, `batch` base twists."""
     import jax
 
     import bundledyn as bd
@@ -439,7 +445,7 @@ def batch_sampler(method, rtol, t1):
     solver = getattr(bd, method)()
 
     @jax.jit
-    def batch(xi):
+    def run(xi):
         def one(x):
             traj = bd.simulate(
                 scene,
@@ -453,36 +459,92 @@ def batch_sampler(method, rtol, t1):
 
         return jax.vmap(one)(xi)
 
-    xi = s.xi + 0.05 * jax.random.normal(jax.random.key(0), (BATCH, 6))
-    _, steps = batch(xi)
-    return blocking(batch, xi), float(steps.mean())
+    return run, s.xi + 0.05 * jax.random.normal(jax.random.key(0), (batch, 6))
 
 
-def batch_throughput(rtols, t1, repeats):
-    """Part 3 in a worker: each solver's batch at its tolerance and `mujoco.rollout`'s, timed
-    in alternation."""
-    samplers, steps = {}, {}
+def batch_sampler(method, rtol, t1, batch=BATCH):
+    """Part 3: `(sampler, mean steps, first call s)` of `batch_rollout`."""
+    import jax
+
+    run, xi = batch_rollout(method, rtol, t1, batch)
+    start = time.perf_counter()
+    _, steps = jax.block_until_ready(run(xi))
+    return blocking(run, xi), float(steps.mean()), time.perf_counter() - start
+
+
+def device_agreement(rtols, t1, batch=64):
+    """The same batch on JAX's default device and on the CPU: the largest difference of the
+    final poses, and whether every rollout took the same number of steps."""
+    import jax
+    import numpy as np
+
+    out = {}
     for method, rtol in rtols.items():
-        samplers[method], steps[method] = batch_sampler(method, rtol, t1)
-    samplers["MuJoCo"], mujoco = mujoco_batch(5, BATCH, t1, MUJOCO_DT)
+        run, xi = batch_rollout(method, rtol, t1, batch)
+        g, steps = run(xi)
+        with jax.default_device(jax.devices("cpu")[0]):
+            run_cpu, xi_cpu = batch_rollout(method, rtol, t1, batch)
+            g_cpu, steps_cpu = run_cpu(xi_cpu)
+        out[method] = {
+            "batch": batch,
+            "max_pose_difference": float(np.max(np.abs(np.asarray(g) - np.asarray(g_cpu)))),
+            "same_steps": bool(np.array_equal(steps, steps_cpu)),
+        }
+    return out
+
+
+def batch_throughput(rtols, t1, repeats, batch=BATCH, threads=(2,)):
+    """Part 3: each solver's batch at its tolerance and `mujoco.rollout`'s on each number of
+    `threads`, timed in alternation: `(bundledyn's by method, [MuJoCo's by threads])`."""
+    samplers, steps, first = {}, {}, {}
+    for method, rtol in rtols.items():
+        samplers[method], steps[method], first[method] = batch_sampler(method, rtol, t1, batch)
+    mujoco = {}
+    for k in threads:
+        samplers[f"MuJoCo {k}"], mujoco[k] = mujoco_batch(5, batch, t1, MUJOCO_DT, k)
     timings = interleaved(samplers, repeats)
-    _, runs = timings.pop("MuJoCo")
-    mujoco |= {
-        "time": runs,
-        "instance_steps_per_second": BATCH * mujoco["steps"] / runs["median"],
-        "rollouts_per_second": BATCH / runs["median"],
-    }
+    for k, info in mujoco.items():
+        _, runs = timings.pop(f"MuJoCo {k}")
+        info |= {
+            "time": runs,
+            "instance_steps_per_second": batch * info["steps"] / runs["median"],
+            "rollouts_per_second": batch / runs["median"],
+        }
     batches = {
         method: {
             "rtol": rtols[method],
             "time": runs,
-            "compile": max(first - runs["median"], 0.0),
-            "rollouts_per_second": BATCH / runs["median"],
+            "compile": max(first[method] - runs["median"], 0.0),
+            "rollouts_per_second": batch / runs["median"],
             "mean_steps": steps[method],
         }
-        for method, (first, runs) in timings.items()
+        for method, (_, runs) in timings.items()
     }
-    return batches, mujoco
+    return batches, list(mujoco.values())
+
+
+def device_batches(sizes, rtols, t1, repeats):
+    """Part 3 on JAX's default device (a GPU where there is one) over growing batches.
+
+    MuJoCo runs on this machine's CPU beside the first size only, on 2 threads and on all
+    cores: `mujoco.rollout`'s throughput does not grow with the batch once its threads are
+    busy, and the larger batches would take minutes per repeat on 2 threads.
+    """
+    import jax
+
+    cores = len(os.sched_getaffinity(0))
+    rows = []
+    for i, batch in enumerate(sizes):
+        threads = tuple(dict.fromkeys((2, cores))) if i == 0 else ()
+        bundledyn, mujoco = batch_throughput(rtols, t1, repeats, batch, threads)
+        rows.append({"batch": batch, "bundledyn": bundledyn, "mujoco": mujoco})
+        print(f"  batch {batch}: {bundledyn}", file=sys.stderr, flush=True)
+    device = jax.devices()[0]
+    return {
+        "device": f"{device.platform}: {device.device_kind}",
+        "rows": rows,
+        "agreement_with_cpu": device_agreement(rtols, t1),
+    }
 
 
 def compile_costs(ns, t1=1.0):
@@ -609,7 +671,7 @@ def worker(ns, repeats, batch_rtols, batch_t1):
             file=sys.stderr,
             flush=True,
         )
-    out["batch"], out["mujoco_batch"] = batch_throughput(batch_rtols, batch_t1, repeats)
+    out["batch"], (out["mujoco_batch"],) = batch_throughput(batch_rtols, batch_t1, repeats)
     out["compile"] = compile_costs(tuple(dict.fromkeys((5, ns[-1]))))
     return out
 
@@ -849,6 +911,83 @@ def markdown(report):
     return "\n".join(lines) + "\n"
 
 
+def device_markdown(report):
+    """The report of `--device-batch`: bundledyn's batches on a device, MuJoCo on its host."""
+    env, rows = report["environment"], report["device_batches"]["rows"]
+    (baseline,) = (m for m in rows[0]["mujoco"] if m["threads"] == 2)
+    rtols = ", ".join(f"{m} rtol {r:.0e}" for m, r in report["batch_rtol"].items())
+    lines = [
+        f"# Batches on {report['device_batches']['device']}",
+        "",
+        f"Measured {env['date']} on {report['device_batches']['device']}, host "
+        f"{env['machine']} (load average at start "
+        + ", ".join(f"{x:.2f}" for x in env["loadavg"])
+        + f"), Python {env['python']}; "
+        + ", ".join(f"{k} {v}" for k, v in env["versions"].items() if v)
+        + f". {report['repeats']} repeats; times are median (min–max).",
+        "",
+        f"bundledyn: `jax.vmap(simulate)` of {report['t1']:g} s of the 5-body chain of "
+        f"`speed.md`, float64, on the device, each solver at the tolerance of the CPU run's "
+        f"part 3 ({rtols}). MuJoCo: `mujoco.rollout`, RK4, dt = 1e-2, on the host's CPU, timed "
+        "in alternation with bundledyn at the first batch size only (its throughput does "
+        "not grow with the batch once its threads are busy). The last column divides "
+        "rollouts/s by MuJoCo's on 2 threads.",
+        "",
+        "| batch | simulator | time per batch [s] | rollouts/s | instance-steps/s "
+        "| compile [s] | × MuJoCo, 2 threads |",
+        "|--:|---|--:|--:|--:|--:|--:|",
+    ]
+    for row in rows:
+        for method, b in row["bundledyn"].items():
+            lines.append(
+                f"| {row['batch']} | bundledyn {method} | {fmt(b['time'], 1)} "
+                f"| {b['rollouts_per_second']:.3g} "
+                f"| {b['rollouts_per_second'] * b['mean_steps']:.3g} "
+                f"(adaptive, {b['mean_steps']:.0f} steps each) | {b['compile']:.1f} "
+                f"| {b['rollouts_per_second'] / baseline['rollouts_per_second']:.3g} |"
+            )
+        for m in row["mujoco"]:
+            lines.append(
+                f"| {row['batch']} | MuJoCo rollout, {m['threads']} threads | {fmt(m['time'], 1)} "
+                f"| {m['rollouts_per_second']:.3g} | {m['instance_steps_per_second']:.3g} | "
+                f"| {m['rollouts_per_second'] / baseline['rollouts_per_second']:.3g} |"
+            )
+    lines.append("")
+    for method, a in report["device_batches"]["agreement_with_cpu"].items():
+        lines.append(
+            f"- {method}: the first {a['batch']} rollouts, run again on the host's CPU, end "
+            f"in poses that differ by at most {a['max_pose_difference']:.1e} from the "
+            f"device's; same step counts: {'yes' if a['same_steps'] else 'no'}."
+        )
+    return "\n".join(lines) + "\n"
+
+
+def device_batch_main(args, repeats):
+    """`--device-batch`: part 3 on JAX's default device at the CPU run's tolerances."""
+    import jax
+
+    import bundledyn as bd
+
+    bd.enable_x64()
+    cpu = json.loads((args.out / "speed.json").read_text())
+    sizes = (256, 1024) if args.quick else DEVICE_BATCHES
+    t1 = 0.2 if args.quick else 1.0
+    report = {
+        "environment": environment(),
+        "repeats": repeats,
+        "t1": t1,
+        "batch_rtol": cpu["batch_rtol"],
+        "device_batches": device_batches(sizes, cpu["batch_rtol"], t1, repeats),
+    }
+    text = device_markdown(report)
+    print(text)
+    if not args.quick:
+        name = f"speed_{jax.devices()[0].platform}"
+        (args.out / f"{name}.json").write_text(json.dumps(report, indent=1) + "\n")
+        (args.out / f"{name}.md").write_text(text)
+    return report
+
+
 def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--quick", action="store_true", help="small sizes, 2 repeats, no files")
@@ -856,6 +995,12 @@ def main(argv=None):
     parser.add_argument("--out", type=pathlib.Path, default=RESULTS, help="results folder")
     parser.add_argument(
         "--report-only", action="store_true", help="redraw speed.md from speed.json"
+    )
+    parser.add_argument(
+        "--device-batch",
+        action="store_true",
+        help="part 3 only, on JAX's default device (a GPU), at the tolerances of --out's "
+        "speed.json; writes speed_<platform>.{md,json}",
     )
     parser.add_argument("--worker", nargs=4, help=argparse.SUPPRESS)
     parser.add_argument("--memory", nargs=1, help=argparse.SUPPRESS)
@@ -875,7 +1020,11 @@ def main(argv=None):
     if args.report_only:
         report = json.loads((args.out / "speed.json").read_text())
         (args.out / "speed.md").write_text(markdown(report))
+        for path in args.out.glob("speed_*.json"):
+            path.with_suffix(".md").write_text(device_markdown(json.loads(path.read_text())))
         return 0
+    if args.device_batch:
+        return device_batch_main(args, repeats)
 
     import bundledyn as bd
 

@@ -23,13 +23,19 @@ def test_accuracy_cost_quick_writes_its_report(tmp_path):
 
 def test_speed_report_redraws_from_its_json(tmp_path):
     """The committed speed results are self-consistent: `--report-only` rebuilds the same
-    markdown from the JSON, and every target row states whether it was met."""
+    markdown from the JSON (the CPU run's and the GPU batches'), and every target row states
+    whether it was met."""
     from benchmarks import speed
 
-    (tmp_path / "speed.json").write_bytes((speed.RESULTS / "speed.json").read_bytes())
+    names = [path.name for path in speed.RESULTS.glob("speed*.json")]
+    assert {"speed.json", "speed_gpu.json"} <= set(names)
+    for name in names:
+        (tmp_path / name).write_bytes((speed.RESULTS / name).read_bytes())
     speed.main(["--report-only", "--out", str(tmp_path)])
+    for name in names:
+        md = name.replace(".json", ".md")
+        assert (tmp_path / md).read_text() == (speed.RESULTS / md).read_text()
     text = (tmp_path / "speed.md").read_text()
-    assert text == (speed.RESULTS / "speed.md").read_text()
     report = json.loads((tmp_path / "speed.json").read_text())
     rows = speed.targets(report)
     assert len(rows) >= 10 and all(isinstance(met, bool) for *_, met in rows)
