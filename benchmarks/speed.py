@@ -800,17 +800,34 @@ def fmt(stats, scale, digits=3):
     return f"{stats['median'] * scale:.{digits}g} ({stats['min'] * scale:.{digits}g}–{stats['max'] * scale:.{digits}g})"
 
 
+def measured(report, where):
+    """The opening sentence of a report: when, where, which versions, how many repeats."""
+    env = report["environment"]
+    return (
+        f"Measured {env['date']} on {where} (load average at start "
+        + ", ".join(f"{x:.2f}" for x in env["loadavg"])
+        + f"), Python {env['python']}; "
+        + ", ".join(f"{k} {v}" for k, v in env["versions"].items() if v)
+        + f". {report['repeats']} repeats; times are median (min–max)."
+    )
+
+
+def batch_cells(b):
+    """Time per batch, rollouts/s and instance-steps/s of one bundledyn batch (part 3)."""
+    return (
+        f"{fmt(b['time'], 1)} | {b['rollouts_per_second']:.3g} "
+        f"| {b['rollouts_per_second'] * b['mean_steps']:.3g} "
+        f"(adaptive, {b['mean_steps']:.0f} steps each)"
+    )
+
+
 def markdown(report):
     env = report["environment"]
     settings = report["settings"]
     lines = [
         "# Speed against MuJoCo",
         "",
-        f"Measured {env['date']} on {env['machine']} (load average at start "
-        + ", ".join(f"{x:.2f}" for x in env["loadavg"])
-        + f"), Python {env['python']}; "
-        + ", ".join(f"{k} {v}" for k, v in env["versions"].items() if v)
-        + f". {report['repeats']} repeats; times are median (min–max). Same MJCF model "
+        measured(report, env["machine"]) + " Same MJCF model "
         "(`benchmarks/speed.py: chain_mjcf`) in both simulators, float64, CPU.",
         "",
         "## Targets",
@@ -875,9 +892,7 @@ def markdown(report):
     for key, label in (("bundledyn", "CPU_XLA_FLAGS"), ("xla_defaults", "XLA defaults")):
         for method, b in settings[key]["batch"].items():
             lines.append(
-                f"| bundledyn {method}, rtol {b['rtol']:.0e}, {label} | {fmt(b['time'], 1)} "
-                f"| {b['rollouts_per_second']:.3g} | {b['rollouts_per_second'] * b['mean_steps']:.3g} "
-                f"(adaptive, {b['mean_steps']:.0f} steps each) |"
+                f"| bundledyn {method}, rtol {b['rtol']:.0e}, {label} | {batch_cells(b)} |"
             )
         m = settings[key]["mujoco_batch"]
         lines.append(
@@ -939,12 +954,7 @@ def device_markdown(report):
     lines = [
         f"# Batches on {report['device_batches']['device']}",
         "",
-        f"Measured {env['date']} on {report['device_batches']['device']}, host "
-        f"{env['machine']} (load average at start "
-        + ", ".join(f"{x:.2f}" for x in env["loadavg"])
-        + f"), Python {env['python']}; "
-        + ", ".join(f"{k} {v}" for k, v in env["versions"].items() if v)
-        + f". {report['repeats']} repeats; times are median (min–max).",
+        measured(report, f"{report['device_batches']['device']}, host {env['machine']}"),
         "",
         f"bundledyn: `jax.vmap(simulate)` of {report['t1']:g} s of the 5-body chain of "
         f"`speed.md`, float64, on the device, each solver at the tolerance of the CPU run's "
@@ -960,10 +970,7 @@ def device_markdown(report):
     for row in rows:
         for method, b in row["bundledyn"].items():
             lines.append(
-                f"| {row['batch']} | bundledyn {method} | {fmt(b['time'], 1)} "
-                f"| {b['rollouts_per_second']:.3g} "
-                f"| {b['rollouts_per_second'] * b['mean_steps']:.3g} "
-                f"(adaptive, {b['mean_steps']:.0f} steps each) | {b['compile']:.1f} "
+                f"| {row['batch']} | bundledyn {method} | {batch_cells(b)} | {b['compile']:.1f} "
                 f"| {b['rollouts_per_second'] / baseline['rollouts_per_second']:.3g} |"
             )
         for m in row["mujoco"]:

@@ -5,21 +5,21 @@ import warnings
 
 from jaxlib.version import __version_info__ as _JAXLIB_VERSION
 
-# XLA aborts the whole process on a flag it does not know (`Unknown flag in XLA_FLAGS`),
-# so a flag XLA has removed must not be passed. jaxlib 0.11 removed the switch back to the
-# older CPU emitters: jaxlib 0.11.2 aborts on it (seen 2026-11-22), 0.10.2 accepts it.
-_LAST_JAXLIB = {"--xla_cpu_use_fusion_emitters=false": (0, 10)}
+# Each flag with the last jaxlib `(major, minor)` whose XLA knows it (None: all so far).
+# XLA aborts the whole process on a flag it does not know (`Unknown flag in XLA_FLAGS`), so
+# a removed flag must not be passed: jaxlib 0.11 removed the switch back to the older CPU
+# emitters (0.11.2 aborts on it, seen 2026-11-22; 0.10.2 accepts it).
+_FLAGS = {
+    "--xla_cpu_use_fusion_emitters=false": (0, 10),
+    "--xla_cpu_multi_thread_eigen=false": None,
+    "--xla_cpu_enable_concurrency_optimized_scheduler=false": None,
+}
 
 
 def _cpu_xla_flags(jaxlib_version: tuple[int, ...]) -> tuple[str, ...]:
     """bundledyn's XLA CPU flags that a jaxlib of this `(major, minor, …)` version knows."""
-    flags = (
-        "--xla_cpu_use_fusion_emitters=false",
-        "--xla_cpu_multi_thread_eigen=false",
-        "--xla_cpu_enable_concurrency_optimized_scheduler=false",
-    )
     release = tuple(jaxlib_version[:2])
-    return tuple(flag for flag in flags if release <= _LAST_JAXLIB.get(flag, release))
+    return tuple(flag for flag, last in _FLAGS.items() if last is None or release <= last)
 
 
 CPU_XLA_FLAGS = _cpu_xla_flags(_JAXLIB_VERSION)
