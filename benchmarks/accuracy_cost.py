@@ -40,20 +40,18 @@ import time
 import warnings
 from collections.abc import Callable
 
-os.environ.setdefault("XLA_FLAGS", "--xla_cpu_use_fusion_emitters=false")
+import diffrax
+import jax
+import jax.numpy as jnp
+import numpy as np
 
-import diffrax  # noqa: E402
-import jax  # noqa: E402
-import jax.numpy as jnp  # noqa: E402
-import numpy as np  # noqa: E402
-
-import bundledyn as bd  # noqa: E402
-from benchmarks.speed import (  # noqa: E402
+import bundledyn as bd
+from benchmarks.speed import (
     chain_scene,
     state_error,
     summary,
     time_at_error as _time_at_error,
-    timed,  # noqa: E402
+    timed,
 )
 
 jax.config.update("jax_enable_x64", True)
@@ -846,4 +844,5 @@ def rewrite_report(out, stem):
 
 
 if __name__ == "__main__":
+    bd.use_cpu_xla_flags()  # before the first computation: importing starts no backend
     main(sys.argv[1:])
