@@ -1,5 +1,6 @@
 """Holonomy of the dynamic connection: horizontal lifts of closed shape loops."""
 
+import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -12,6 +13,7 @@ from ._systems._base import AbstractSystem
 _GAUSS = (0.5 - np.sqrt(3.0) / 6.0, 0.5 + np.sqrt(3.0) / 6.0)
 
 
+@eqx.filter_jit
 def horizontal_lift(system: AbstractSystem, path, *, steps: int = 64) -> Float[Array, "4 4"]:
     """Group displacement of the horizontal lift of a shape path $s\\mapsto q(s)$, $s\\in[0,1]$.
 
@@ -45,6 +47,7 @@ def horizontal_lift(system: AbstractSystem, path, *, steps: int = 64) -> Float[A
     return g
 
 
+@eqx.filter_jit
 def square_loop_holonomy(system, q, u, w, eps, *, steps: int = 16):
     """Holonomy of the square loop $q \\to q+\\varepsilon u \\to q+\\varepsilon(u+w) \\to q+\\varepsilon w \\to q$.
 
@@ -69,6 +72,7 @@ def square_loop_holonomy(system, q, u, w, eps, *, steps: int = 16):
     return horizontal_lift(system, path, steps=4 * steps)
 
 
+@eqx.filter_jit
 def curvature_by_holonomy(system: AbstractSystem, q, eps, *, steps: int = 16):
     """The curvature estimated from holonomies of small horizontal square loops.
 
