@@ -134,6 +134,7 @@ _NEXT, _AFTER = (_J + 1) % 3, (_J + 2) % 3
 _NEXT_T, _AFTER_T = (_I + 1) % 3, (_I + 2) % 3
 
 
+@jax.custom_jvp
 def inverse_3x3(M: Float[Array, "3 3"]) -> Float[Array, "3 3"]:
     """$M^{-1} = \\operatorname{adj}(M)/\\det M$ (the rows of the adjugate are cross products of columns).
 
@@ -148,6 +149,15 @@ def inverse_3x3(M: Float[Array, "3 3"]) -> Float[Array, "3 3"]:
     """
     adjugate = M[_NEXT, _NEXT_T] * M[_AFTER, _AFTER_T] - M[_AFTER, _NEXT_T] * M[_NEXT, _AFTER_T]
     return adjugate / jnp.dot(M[:, 0], adjugate[0])
+
+
+@inverse_3x3.defjvp
+def _inverse_3x3_jvp(primals, tangents):
+    # $d(M^{-1}) = -M^{-1}\,dM\,M^{-1}$: products, whose transposes are products too; the
+    # adjugate's gathers would transpose into scatter-adds.
+    (M,), (dM,) = primals, tangents
+    inverse = inverse_3x3(M)
+    return inverse, -matmul(inverse, matmul(dM, inverse))
 
 
 def spd_inverse_6x6(M: Float[Array, "6 6"]) -> Float[Array, "6 6"]:

@@ -138,6 +138,14 @@ def test_small_einsum_gradient_has_no_pad():
     assert " pad(" not in jax.jit(grad).lower(a).compile().as_text()
 
 
+def test_inverse_gradient_has_no_scatter():
+    """The reverse mode of the closed-form inverses is products, -M⁻¹ dM M⁻¹: the
+    adjugate's gathers would transpose into scatter-adds."""
+    M = jnp.asarray(_random_spd(np.random.default_rng(3), 6, 10.0))
+    grad = jax.grad(lambda M: jnp.sum(jnp.sin(spd_inverse_6x6(M))))
+    assert "scatter" not in str(jax.make_jaxpr(grad)(M))
+
+
 def test_small_einsum_is_fused_elementwise_work():
     """No `dot` in the compiled product of two 6×6 matrices (the point of the helper)."""
     a = jnp.ones((6, 6))
