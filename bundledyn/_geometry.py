@@ -3,8 +3,8 @@
 All functions are pure functions of a system and its shape $q$; they vmap over $q$ and
 differentiate, and are compiled (`equinox.filter_jit`): called on concrete values, each
 runs as one program rather than op by op (the curvature of a 3-body chain lowered about
-300 programs, one per primitive). Notation of DESIGN §2: $G = [[I_r, B], [B^T, M]]$ in the variables
-$(\\xi, \\dot q)$ with $\\xi = g^{-1}\\dot g$ of the section frame.
+300 programs, one per primitive). Notation of DESIGN §2: $G = [[I_r, B], [B^T, M]]$ in
+the variables $(\\xi, \\dot q)$ with $\\xi = g^{-1}\\dot g$ of the section frame.
 """
 
 import equinox as eqx

@@ -90,10 +90,6 @@ def _broadcast_product(letters, order, n_out, operands):
     return product.reshape(*kept, math.prod(product.shape[n_out:]))
 
 
-def _summed_product(letters, order, n_out, operands):
-    return jnp.sum(_broadcast_product(letters, order, n_out, operands), axis=-1)
-
-
 @functools.partial(jax.custom_jvp, nondiff_argnums=(0, 1, 2))
 def _fused_einsum(letters, order, n_out, *operands):
     terms = _broadcast_product(letters, order, n_out, operands)
@@ -111,7 +107,7 @@ def _fused_einsum_jvp(letters, order, n_out, primals, tangents):
     # the VJP of the 5-body chain's vector field cost 13x its evaluation, now 7x.
     out = _fused_einsum(letters, order, n_out, *primals)
     parts = [
-        _summed_product(letters, order, n_out, (*primals[:i], t, *primals[i + 1 :]))
+        jnp.sum(_broadcast_product(letters, order, n_out, (*primals[:i], t, *primals[i + 1 :])), -1)
         for i, t in enumerate(tangents)
         if not isinstance(t, jax.custom_derivatives.SymbolicZero)
     ]

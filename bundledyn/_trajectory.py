@@ -33,14 +33,14 @@ class Trajectory(eqx.Module):
     result: object
     scene: Scene
 
-    # The diagnostics are compiled: evaluated op by op on a trajectory, the vmapped metric
-    # of a 5-body chain compiled one kernel at a time (about 400, 9 s in all).
     def _kinematics(self):
         def one(t, g, q, U, qdot):
             return self.scene.kinematics(t, (g, self.scene.join(q, U, qdot)))
 
         return jax.vmap(one)(self.ts, self.g, self.q, self.U, self.qdot)
 
+    # The diagnostics are compiled: evaluated op by op on a trajectory, the vmapped metric
+    # of a 5-body chain compiled one kernel at a time (about 400, 9 s in all).
     @eqx.filter_jit
     def energy(self) -> Float[Array, " n"]:
         """Total energy in the Galilean frame: $T$ of (2.1) plus every conservative effect's $\\Pi$."""
