@@ -42,8 +42,15 @@ _HIGHEST = lax.Precision.HIGHEST
 
 
 def _combine(w, stack):
-    """Σ_i w_i stack[i] (w a constant vector or a (m, s) matrix), at full precision."""
-    return jnp.tensordot(w.astype(stack.dtype), stack, axes=1, precision=_HIGHEST)
+    """Σ_i w_i stack[..., i] (w a constant vector or a (m, s) matrix), at full precision.
+
+    The stage axis is the stacks' last: under `vmap` the batch comes first, and a
+    contraction over a leading stage axis made XLA's CPU copy the whole stack to bring that
+    axis forward before every stage. 1024 vmapped 5-body chains, alternating in one process:
+    RKMK87 steps 8 % and 1 s rollouts 6 % faster this way; single steps unchanged.
+    """
+    out = jnp.tensordot(stack, w.astype(stack.dtype), axes=([-1], [-1]), precision=_HIGHEST)
+    return out if w.ndim == 1 else jnp.moveaxis(out, -1, 0)
 
 
 class AbstractRKMK(AbstractSolver):
@@ -116,12 +123,12 @@ class AbstractRKMK(AbstractSolver):
             kg, *kx = jtu.tree_leaves(terms.prod(fi, control))
             eta = twist_of_tangent(gi, kg).astype(omega.dtype)
             kappa = matmul(lie.se3_dexp_inv(omega), eta)
-            kappas = kappas.at[i].set(kappa)
-            ks = [k.at[i].set(kxi.astype(k.dtype)) for k, kxi in zip(ks, kx, strict=True)]
+            kappas = kappas.at[..., i].set(kappa)
+            ks = [k.at[..., i].set(kxi.astype(k.dtype)) for k, kxi in zip(ks, kx, strict=True)]
             return (kappas, ks), None
 
-        kappas0 = jnp.zeros((s, 6), dtype=g0.dtype)
-        ks0 = [jnp.zeros((s, *jnp.shape(x)), dtype=jnp.result_type(x)) for x in rest0]
+        kappas0 = jnp.zeros((6, s), dtype=g0.dtype)
+        ks0 = [jnp.zeros((*jnp.shape(x), s), dtype=jnp.result_type(x)) for x in rest0]
         # Rematerialized under reverse mode: the scan then stores each stage's inputs, not
         # the field's intermediates stacked over the stages (see the class docstring).
         stage = jax.checkpoint(stage, prevent_cse=False)  # a scan body needs no CSE barrier
@@ -143,7 +150,7 @@ class AbstractRKMK(AbstractSolver):
             coeffs = [_combine(d, kappas)] + [_combine(d, k) for k in ks]
         else:  # stages were skipped: an interpolation would be wrong, so make it NaN
             degree = tab.dense.shape[0]
-            coeffs = [jnp.full((degree, *k.shape[1:]), jnp.nan, k.dtype) for k in (kappas, *ks)]
+            coeffs = [jnp.full((degree, *k.shape[:-1]), jnp.nan, k.dtype) for k in (kappas, *ks)]
         coeffs = jtu.tree_unflatten(treedef, coeffs)
         dense_info = dict(y0=y0, coeffs=coeffs)
         return y1, y_error, dense_info, None, RESULTS.successful
