@@ -9,12 +9,13 @@ and no forces, written once as MJCF (`chain_mjcf`) and loaded by both MuJoCo and
    (no dispatch), against MuJoCo's `mj_forward` (Python loop over the C call) and one RK4
    step (`mujoco.rollout`, a C loop), for n = 1, 5, 10, 20.
 2. **10 s of the 5-body chain**: bundledyn's default solver (RKMK87) and its fifth-order
-   RKMK54 swept over tolerances and MuJoCo RK4 over time steps, errors against a reference
-   (RKMK87 at rtol 1e-13, checked against diffrax's Dopri8); wall time interpolated
-   (log–log) at the error of MuJoCo RK4 with dt = 1e-2 and at 1e-10.
-3. **Batches**: `jax.vmap` of 1 s rollouts over 1024 initial states, each solver at the
-   loosest tolerance that matches MuJoCo RK4 dt = 1e-2 in part 2, against `mujoco.rollout`
-   on 2 threads (and MJX when `mujoco.mjx` is installed).
+   RKMK54 swept over tolerances, RKMK87 with fixed steps (`diffrax.ConstantStepSize`) over
+   the step, and MuJoCo RK4 over time steps, errors against a reference (RKMK87 at rtol
+   1e-13, checked against diffrax's Dopri8); wall time interpolated (log–log) at the error
+   of MuJoCo RK4 with dt = 1e-2 and at 1e-10.
+3. **Batches**: `jax.vmap` of 1 s rollouts over 1024 initial states, each method at the
+   loosest tolerance (or longest step) that matches MuJoCo RK4 dt = 1e-2 in part 2, against
+   `mujoco.rollout` on 2 threads (and MJX when `mujoco.mjx` is installed).
 4. **Compile times** of `simulate` (n = 5, 20) and of its `jax.grad` (n = 20).
 5. **Gradients**: `jax.grad` of a loss on the 10 s rollout over the forward solve; peak
    memory of the gradient of a 10⁵-step rollout (RKMK4, fixed step, checkpointed).
@@ -60,7 +61,14 @@ LOOP_EVALS = 1000
 BATCH = 1024
 MEMORY_STEPS = 100_000
 DEVICE_BATCHES = (1024, 8192, 65536)  # `--device-batch`
-SOLVERS = ("RKMK87", "RKMK54")  # bundledyn's methods in parts 2 and 3; the first is the default
+FIXED_STEPS = (40, 50, 60, 70, 80, 100, 120, 160, 200, 250)  # steps over 10 s, part 2
+# bundledyn's methods in parts 2 and 3, the first the default: name -> (solver, step control).
+# Adaptive ones are swept over rtol, fixed-step ones over the step.
+METHODS = {
+    "RKMK87": ("RKMK87", "adaptive"),
+    "RKMK54": ("RKMK54", "adaptive"),
+    "RKMK87, fixed step": ("RKMK87", "fixed"),
+}
 
 
 # ------------------------------------------------------------------------------- models
@@ -343,21 +351,30 @@ def field_cost(n, repeats):
     }
 
 
-def rollout_fn(scene, t1, **options):
-    """A jitted `(state, rtol) -> (final state, steps)` of `bd.simulate`, atol = rtol / 100.
+def simulate_options(solver, control, setting):
+    """`bd.simulate`'s keywords for `solver` (a name in bundledyn or diffrax) at `setting`:
+    rtol (atol = rtol / 100) for `control = "adaptive"`, the step for `"fixed"`."""
+    import diffrax
 
-    The default solver unless `options` names one; the tolerance is traced, so a sweep
-    compiles once.
-    """
+    import bundledyn as bd
+
+    options = {"solver": (getattr(bd, solver, None) or getattr(diffrax, solver))()}
+    if control == "fixed":
+        return options | {"dt0": setting, "stepsize_controller": diffrax.ConstantStepSize()}
+    return options | {"rtol": setting, "atol": setting * 1e-2}
+
+
+def rollout_fn(scene, t1, solver, control="adaptive"):
+    """A jitted `(state, setting) -> (final state, steps)` of `bd.simulate` (see
+    `simulate_options`); the setting is traced, so a sweep compiles once."""
     import jax
 
     import bundledyn as bd
 
     @jax.jit
-    def run(state, rtol):
-        traj = bd.simulate(
-            scene, state, t1, rtol=rtol, atol=rtol * 1e-2, max_steps=200_000, **options
-        )
+    def run(state, setting):
+        options = simulate_options(solver, control, setting)
+        traj = bd.simulate(scene, state, t1, max_steps=200_000, **options)
         return (traj.g[-1], traj.q[-1], traj.xi[-1], traj.qdot[-1]), traj.stats["num_steps"]
 
     return run
@@ -390,34 +407,40 @@ def time_at_error(points, target):
 
 
 def setting_at_error(points, target):
-    """The loosest sweep setting whose error is at most `target`."""
-    ok = [p for p in points if p["error"] <= target]
-    return max(ok, key=lambda p: p["error"])["setting"] if ok else None
+    """The loosest sweep setting whose error is at most `target` (the most accurate if none)."""
+    ok = [p for p in points if p["error"] <= target] or [min(points, key=lambda p: p["error"])]
+    return max(ok, key=lambda p: p["error"])["setting"]
+
+
+def setting_label(method, setting):
+    """`rtol 1e-07` for an adaptive method of `METHODS`, else (fixed step, MuJoCo) `dt 0.167`."""
+    adaptive = METHODS.get(method, (None, "fixed"))[1] == "adaptive"
+    return f"rtol {setting:.0e}" if adaptive else f"dt {setting:.3g}"
 
 
 def chain_ten_seconds(repeats, quick):
     """Part 2: bundledyn's solvers and MuJoCo RK4 on 10 s of the 5-body chain, errors vs a reference."""
-    import diffrax
     import jax
-
-    import bundledyn as bd
 
     scene = chain_scene(5)
     state = initial_state(scene)
     t1 = 2.0 if quick else T_CHAIN
-    ref, _ = rollout_fn(scene, t1, solver=bd.RKMK87())(state, 1e-13)
-    check, _ = rollout_fn(scene, t1, solver=diffrax.Dopri8())(state, 1e-13)
+    ref, _ = rollout_fn(scene, t1, "RKMK87")(state, 1e-13)
+    check, _ = rollout_fn(scene, t1, "Dopri8")(state, 1e-13)
     rows = {"t1": t1, "reference_agreement": state_error(ref, check)}
-    rtols = (1e-4, 1e-7, 1e-10) if quick else tuple(10.0**-k for k in range(3, 13))
+    sweeps = {
+        "adaptive": (1e-4, 1e-7, 1e-10) if quick else tuple(10.0**-k for k in range(3, 13)),
+        "fixed": tuple(t1 / n for n in ((10, 20, 40) if quick else FIXED_STEPS)),
+    }
     dts = (1e-2, 2.5e-3) if quick else tuple(MUJOCO_DT / 2**k for k in range(6))
     points, samplers = {}, {}
-    for method in SOLVERS:
-        run = rollout_fn(scene, t1, solver=getattr(bd, method)())
-        for rtol in rtols:
-            final, steps = jax.block_until_ready(run(state, rtol))
-            points[method, rtol] = {"setting": rtol, "error": state_error(final, ref)}
-            points[method, rtol]["steps"] = int(steps)
-            samplers[method, rtol] = blocking(run, state, rtol)
+    for method, (solver, control) in METHODS.items():
+        run = rollout_fn(scene, t1, solver, control)
+        for setting in sweeps[control]:
+            final, steps = jax.block_until_ready(run(state, setting))
+            points[method, setting] = {"setting": setting, "error": state_error(final, ref)}
+            points[method, setting]["steps"] = int(steps)
+            samplers[method, setting] = blocking(run, state, setting)
     for dt in dts:
         final, samplers["MuJoCo RK4", dt] = mujoco_final_state(5, dt, t1, scene, state)
         points["MuJoCo RK4", dt] = {"setting": dt, "error": state_error(final, ref)}
@@ -433,28 +456,22 @@ def chain_ten_seconds(repeats, quick):
     return rows
 
 
-def batch_rollout(method, rtol, t1, batch):
-    """Part 3: `(run, xi)`: a jitted `jax.vmap` of 5-body chain rollouts with solver
-    `method`, returning final poses and step counts, and its input, `batch` base twists."""
+def batch_rollout(method, setting, t1, batch):
+    """Part 3: `(run, xi)`: a jitted `jax.vmap` of 5-body chain rollouts with `method` (a
+    name in `METHODS`) at `setting`, returning final poses and step counts, and its input,
+    `batch` base twists."""
     import jax
 
     import bundledyn as bd
 
     scene = chain_scene(5)
     s = initial_state(scene)
-    solver = getattr(bd, method)()
 
     @jax.jit
     def run(xi):
         def one(x):
-            traj = bd.simulate(
-                scene,
-                bd.State(s.g, s.q, x, s.qdot),
-                t1,
-                solver=solver,
-                rtol=rtol,
-                atol=rtol * 1e-2,
-            )
+            options = simulate_options(*METHODS[method], setting)
+            traj = bd.simulate(scene, bd.State(s.g, s.q, x, s.qdot), t1, **options)
             return traj.g[-1], traj.stats["num_steps"]
 
         return jax.vmap(one)(xi)
@@ -462,7 +479,7 @@ def batch_rollout(method, rtol, t1, batch):
     return run, s.xi + 0.05 * jax.random.normal(jax.random.key(0), (batch, 6))
 
 
-def batch_sampler(method, rtol, t1, batch=BATCH, threads=1):
+def batch_sampler(method, setting, t1, batch=BATCH, threads=1):
     """Part 3: `(sampler, mean steps, first call s)` of `batch_rollout`, the batch split into
     `threads` equal parts run concurrently from Python threads (JAX releases the GIL while
     XLA runs, and XLA's CPU runtime runs one program mostly on one core)."""
@@ -471,7 +488,7 @@ def batch_sampler(method, rtol, t1, batch=BATCH, threads=1):
     import jax
     import jax.numpy as jnp
 
-    run, xi = batch_rollout(method, rtol, t1, batch)
+    run, xi = batch_rollout(method, setting, t1, batch)
     parts = jnp.split(xi, threads)
     pool = ThreadPoolExecutor(threads)
 
@@ -486,18 +503,18 @@ def batch_sampler(method, rtol, t1, batch=BATCH, threads=1):
     return sample, float(steps.mean()), time.perf_counter() - start
 
 
-def device_agreement(rtols, t1, batch=64):
+def device_agreement(batch_settings, t1, batch=64):
     """The same batch on JAX's default device and on the CPU: the largest difference of the
     final poses, and whether every rollout took the same number of steps."""
     import jax
     import numpy as np
 
     out = {}
-    for method, rtol in rtols.items():
-        run, xi = batch_rollout(method, rtol, t1, batch)
+    for method, setting in batch_settings.items():
+        run, xi = batch_rollout(method, setting, t1, batch)
         g, steps = run(xi)
         with jax.default_device(jax.devices("cpu")[0]):
-            run_cpu, xi_cpu = batch_rollout(method, rtol, t1, batch)
+            run_cpu, xi_cpu = batch_rollout(method, setting, t1, batch)
             g_cpu, steps_cpu = run_cpu(xi_cpu)
         out[method] = {
             "batch": batch,
@@ -507,16 +524,17 @@ def device_agreement(rtols, t1, batch=64):
     return out
 
 
-def batch_throughput(rtols, t1, repeats, batch=BATCH, threads=(2,), split=(1,)):
-    """Part 3: each solver's batch at its tolerance, split over each number of Python
+def batch_throughput(batch_settings, t1, repeats, batch=BATCH, threads=(2,), split=(1,)):
+    """Part 3: each method's batch at its setting, split over each number of Python
     threads in `split` (`batch_sampler`), and `mujoco.rollout`'s on each number of
     `threads`, timed in alternation: `(bundledyn's by name, [MuJoCo's by threads])`."""
     samplers, settings, first, mujoco = {}, {}, {}, {}
-    for method, rtol in rtols.items():
+    for method, setting in batch_settings.items():
         for k in split:
             name = method if k == 1 else f"{method}, {k} threads"
-            samplers[name], steps, first[name] = batch_sampler(method, rtol, t1, batch, k)
-            settings[name] = {"method": method, "threads": k, "rtol": rtol, "mean_steps": steps}
+            samplers[name], steps, first[name] = batch_sampler(method, setting, t1, batch, k)
+            settings[name] = {"method": method, "threads": k, "setting": setting}
+            settings[name]["mean_steps"] = steps
     for k in threads:
         samplers[f"MuJoCo {k}"], mujoco[k] = mujoco_batch(5, batch, t1, MUJOCO_DT, k)
     timings = interleaved(samplers, repeats)
@@ -539,7 +557,7 @@ def batch_throughput(rtols, t1, repeats, batch=BATCH, threads=(2,), split=(1,)):
     return batches, list(mujoco.values())
 
 
-def device_batches(sizes, rtols, t1, repeats):
+def device_batches(sizes, batch_settings, t1, repeats):
     """Part 3 on JAX's default device (a GPU where there is one) over growing batches.
 
     MuJoCo runs on this machine's CPU beside the first size only, on 2 threads and on all
@@ -552,14 +570,14 @@ def device_batches(sizes, rtols, t1, repeats):
     rows = []
     for i, batch in enumerate(sizes):
         threads = tuple(dict.fromkeys((2, cores))) if i == 0 else ()
-        bundledyn, mujoco = batch_throughput(rtols, t1, repeats, batch, threads)
+        bundledyn, mujoco = batch_throughput(batch_settings, t1, repeats, batch, threads)
         rows.append({"batch": batch, "bundledyn": bundledyn, "mujoco": mujoco})
         print(f"  batch {batch}: {bundledyn}", file=sys.stderr, flush=True)
     device = jax.devices()[0]
     return {
         "device": f"{device.platform}: {device.device_kind}",
         "rows": rows,
-        "agreement_with_cpu": device_agreement(rtols, t1),
+        "agreement_with_cpu": device_agreement(batch_settings, t1),
     }
 
 
@@ -673,8 +691,8 @@ def gradient_memory(steps):
 # ------------------------------------------------------------------------------- workers
 
 
-def worker(ns, repeats, batch_rtols, batch_t1):
-    """Parts 1, 3 and 4 under this process's XLA flags (`batch_rtols`: method → rtol), with
+def worker(ns, repeats, batch_settings, batch_t1):
+    """Parts 1, 3 and 4 under this process's XLA flags (`batch_settings`: method → setting), with
     MuJoCo's side of parts 1 and 3 timed in alternation with bundledyn's."""
     import bundledyn as bd
 
@@ -688,7 +706,7 @@ def worker(ns, repeats, batch_rtols, batch_t1):
             flush=True,
         )
     out["batch"], (out["mujoco_batch"],) = batch_throughput(
-        batch_rtols, batch_t1, repeats, split=(1, 2)
+        batch_settings, batch_t1, repeats, split=(1, 2)
     )
     out["compile"] = compile_costs(tuple(dict.fromkeys((5, ns[-1]))))
     return out
@@ -742,8 +760,8 @@ def targets(report):
     chain = report["chain"]
     mj_coarse = chain["MuJoCo RK4"][0]
     t_mj = time_at_error(chain["MuJoCo RK4"], TARGET_ERROR)
-    for method in SOLVERS:
-        label = f"{method} (default)" if method == SOLVERS[0] else method
+    for method in METHODS:
+        label = f"{method} (default)" if method == next(iter(METHODS)) else method
         t_bd = time_at_error(chain[method], mj_coarse["error"])
         if t_bd is not None:
             rows.append(
@@ -817,7 +835,7 @@ def batch_cells(b):
     return (
         f"{fmt(b['time'], 1)} | {b['rollouts_per_second']:.3g} "
         f"| {b['rollouts_per_second'] * b['mean_steps']:.3g} "
-        f"(adaptive, {b['mean_steps']:.0f} steps each)"
+        f"({METHODS[b['method']][1]}, {b['mean_steps']:.0f} steps each)"
     )
 
 
@@ -868,19 +886,21 @@ def markdown(report):
         "| method | setting | steps | error | time [ms] |",
         "|---|--:|--:|--:|--:|",
     ]
-    for method in (*SOLVERS, "MuJoCo RK4"):
+    for method in (*METHODS, "MuJoCo RK4"):
         for p in chain[method]:
-            label = f"rtol {p['setting']:.0e}" if method in SOLVERS else f"dt {p['setting']:.3g}"
             lines.append(
-                f"| {method} | {label} | {p['steps']} | {p['error']:.2e} | {fmt(p['time'], 1e3)} |"
+                f"| {method} | {setting_label(method, p['setting'])} | {p['steps']} "
+                f"| {p['error']:.2e} | {fmt(p['time'], 1e3)} |"
             )
     mjb = settings["bundledyn"]["mujoco_batch"]
     lines += [
         "",
         f"## 3. Batches of {BATCH} (5-body chain, 1 s)",
         "",
-        "bundledyn: `jax.vmap(simulate)`, each solver at the loosest tolerance at least as "
-        "accurate as MuJoCo RK4 with dt = 1e-2 over 10 s (part 2). "
+        "bundledyn: `jax.vmap(simulate)`, each method at the loosest tolerance (or longest "
+        "fixed step) at least as accurate as MuJoCo RK4 with dt = 1e-2 over 10 s (part 2). "
+        "Adaptive members of a `vmap`ped batch step in lockstep until the last is done; "
+        "fixed steps are the same for all. "
         f"MuJoCo: `mujoco.rollout`, RK4, dt = 1e-2, {mjb['threads']} threads, timed in "
         "alternation with bundledyn in each worker. “2 threads”: the batch in two halves, "
         "each a `jax.vmap`, run at once from two Python threads (XLA's CPU runtime runs one "
@@ -891,9 +911,8 @@ def markdown(report):
     ]
     for key, label in (("bundledyn", "CPU_XLA_FLAGS"), ("xla_defaults", "XLA defaults")):
         for method, b in settings[key]["batch"].items():
-            lines.append(
-                f"| bundledyn {method}, rtol {b['rtol']:.0e}, {label} | {batch_cells(b)} |"
-            )
+            setting = setting_label(b["method"], b["setting"])
+            lines.append(f"| bundledyn {method}, {setting}, {label} | {batch_cells(b)} |")
         m = settings[key]["mujoco_batch"]
         lines.append(
             f"| MuJoCo rollout, beside {label} | {fmt(m['time'], 1)} "
@@ -950,15 +969,17 @@ def device_markdown(report):
     """The report of `--device-batch`: bundledyn's batches on a device, MuJoCo on its host."""
     env, rows = report["environment"], report["device_batches"]["rows"]
     (baseline,) = (m for m in rows[0]["mujoco"] if m["threads"] == 2)
-    rtols = ", ".join(f"{m} rtol {r:.0e}" for m, r in report["batch_rtol"].items())
+    # Results written before the fixed-step method name the settings `batch_rtol`.
+    batch_settings = report.get("batch_setting") or report["batch_rtol"]
+    settings = ", ".join(f"{m} {setting_label(m, r)}" for m, r in batch_settings.items())
     lines = [
         f"# Batches on {report['device_batches']['device']}",
         "",
         measured(report, f"{report['device_batches']['device']}, host {env['machine']}"),
         "",
         f"bundledyn: `jax.vmap(simulate)` of {report['t1']:g} s of the 5-body chain of "
-        f"`speed.md`, float64, on the device, each solver at the tolerance of the CPU run's "
-        f"part 3 ({rtols}). MuJoCo: `mujoco.rollout`, RK4, dt = 1e-2, on the host's CPU, timed "
+        f"`speed.md`, float64, on the device, each method at the setting of the CPU run's "
+        f"part 3 ({settings}). MuJoCo: `mujoco.rollout`, RK4, dt = 1e-2, on the host's CPU, timed "
         "in alternation with bundledyn at the first batch size only (its throughput does "
         "not grow with the batch once its threads are busy). The last column divides "
         "rollouts/s by MuJoCo's on 2 threads.",
@@ -1003,8 +1024,8 @@ def device_batch_main(args, repeats):
         "environment": environment(),
         "repeats": repeats,
         "t1": t1,
-        "batch_rtol": cpu["batch_rtol"],
-        "device_batches": device_batches(sizes, cpu["batch_rtol"], t1, repeats),
+        "batch_setting": cpu["batch_setting"],
+        "device_batches": device_batches(sizes, cpu["batch_setting"], t1, repeats),
     }
     text = device_markdown(report)
     print(text)
@@ -1035,8 +1056,8 @@ def main(argv=None):
     repeats = args.repeats or (2 if args.quick else 5)
     if args.worker:
         ns = [int(n) for n in args.worker[0].split(",")]
-        rtols, t1 = json.loads(args.worker[2]), float(args.worker[3])
-        print(json.dumps(worker(ns, int(args.worker[1]), rtols, t1)))
+        batch_settings, t1 = json.loads(args.worker[2]), float(args.worker[3])
+        print(json.dumps(worker(ns, int(args.worker[1]), batch_settings, t1)))
         return 0
     if args.memory:
         import bundledyn as bd
@@ -1067,8 +1088,8 @@ def main(argv=None):
     print("part 2: chain", flush=True)
     report["chain"] = chain_ten_seconds(repeats, args.quick)
     coarse = report["chain"]["MuJoCo RK4"][0]["error"]
-    report["batch_rtol"] = {
-        method: setting_at_error(report["chain"][method], coarse) or 1e-6 for method in SOLVERS
+    report["batch_setting"] = {
+        method: setting_at_error(report["chain"][method], coarse) for method in METHODS
     }
     batch_t1 = 0.2 if args.quick else 1.0
     print("part 1: MuJoCo", flush=True)
@@ -1084,7 +1105,7 @@ def main(argv=None):
         worker_args = [
             ",".join(map(str, ns)),
             str(repeats),
-            json.dumps(report["batch_rtol"]),
+            json.dumps(report["batch_setting"]),
             str(batch_t1),
         ]
         report["settings"][key] = run_worker("worker", worker_args, flags)

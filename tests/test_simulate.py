@@ -102,6 +102,30 @@ def test_default_solver_is_the_cheaper_and_more_accurate_at_default_tolerance():
     assert evaluations["default"] < evaluations["RKMK54"]
 
 
+def test_adaptive_solver_takes_fixed_steps_with_a_constant_controller():
+    """`stepsize_controller=diffrax.ConstantStepSize()` with `dt0`: the default RKMK87 takes
+    exactly (t1 - t0)/dt0 steps, and its error against the closed form falls at its order.
+    Measured on the Dzhanibekov body over 20 s: 8.3e-10 with 40 steps, 3.3e-12 with 80, an
+    order of 8.0."""
+    body = bd.RigidBody(1.0, np.zeros(3), np.diag(INERTIA))
+    omega0 = np.array([0.85, 0.0, 0.5])
+    state = bd.State(jnp.eye(4), xi=jnp.concatenate([omega0, jnp.zeros(3)]))
+    constant = diffrax.ConstantStepSize()
+
+    @jax.jit
+    def run(dt):
+        traj = bd.simulate(bd.Scene(body), state, 20.0, dt0=dt, stepsize_controller=constant)
+        return traj.xi[-1, :3], traj.g[-1, :3, :3], traj.stats["num_steps"]
+
+    omega_exact, R_exact = euler_top(20.0, omega0)
+    errors = []
+    for n in (40, 80):
+        omega, R, steps = run(20.0 / n)
+        assert int(steps) == n
+        errors.append(max(np.abs(omega - omega_exact).max(), np.abs(R - R_exact).max()))
+    assert 7.5 < np.log2(errors[0] / errors[1]) < 8.5
+
+
 FREE_CHAIN_STATE = bd.State(
     lie.se3_exp(jnp.array([0.1, -0.3, 0.2, 0.5, 0.0, -0.2])),
     0.3 * jnp.cos(jnp.arange(chain(5).shape_dim)),
