@@ -830,12 +830,13 @@ def measured(report, where):
     )
 
 
-def batch_cells(b):
-    """Time per batch, rollouts/s and instance-steps/s of one bundledyn batch (part 3)."""
+def batch_cells(b, method):
+    """Time per batch, rollouts/s and instance-steps/s of one bundledyn batch of `method`
+    (a name in `METHODS`; part 3)."""
     return (
         f"{fmt(b['time'], 1)} | {b['rollouts_per_second']:.3g} "
         f"| {b['rollouts_per_second'] * b['mean_steps']:.3g} "
-        f"({METHODS[b['method']][1]}, {b['mean_steps']:.0f} steps each)"
+        f"({METHODS[method][1]}, {b['mean_steps']:.0f} steps each)"
     )
 
 
@@ -912,7 +913,8 @@ def markdown(report):
     for key, label in (("bundledyn", "CPU_XLA_FLAGS"), ("xla_defaults", "XLA defaults")):
         for method, b in settings[key]["batch"].items():
             setting = setting_label(b["method"], b["setting"])
-            lines.append(f"| bundledyn {method}, {setting}, {label} | {batch_cells(b)} |")
+            cells = batch_cells(b, b["method"])
+            lines.append(f"| bundledyn {method}, {setting}, {label} | {cells} |")
         m = settings[key]["mujoco_batch"]
         lines.append(
             f"| MuJoCo rollout, beside {label} | {fmt(m['time'], 1)} "
@@ -991,7 +993,7 @@ def device_markdown(report):
     for row in rows:
         for method, b in row["bundledyn"].items():
             lines.append(
-                f"| {row['batch']} | bundledyn {method} | {batch_cells(b)} | {b['compile']:.1f} "
+                f"| {row['batch']} | bundledyn {method} | {batch_cells(b, method)} | {b['compile']:.1f} "
                 f"| {b['rollouts_per_second'] / baseline['rollouts_per_second']:.3g} |"
             )
         for m in row["mujoco"]:
