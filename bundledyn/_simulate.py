@@ -107,7 +107,9 @@ def simulate(
       ones. With `diffrax.ConstantStepSize()` and `dt0`, an adaptive solver takes fixed
       steps: a `vmap`ped batch then takes the same steps in every member, where adaptive
       members run in lockstep until the one needing most steps is done (1 s rollouts of
-      1024 5-body chains at rtol 1e-7: 9.3 steps on average, 12 for all).
+      1024 5-body chains at rtol 1e-7: 9.3 steps on average, 12 for all). An adaptive
+      controller given without `dt0` starts at the step described under `dt0`, from its
+      own `rtol` and `atol`.
     - `saveat`: a `diffrax.SaveAt`; default saves at `t0` and `t1`. When it saves only
       at `t0`, `t1` or the steps and there is no `event`, a Lie-group solver skips the
       stages that only its dense output uses (`AbstractRKMK`'s `dense_output`): `RKMK87`
@@ -126,7 +128,6 @@ def simulate(
     if isinstance(solver, AbstractRKMK) and not _interpolates(saveat, event):
         solver = dataclasses.replace(solver, dense_output=False)
     y0 = initial_condition(scene, state0, t0)
-    warn_if_tolerance_too_tight(rtol, y0[0].dtype)
     term = SceneTerm(scene)
     if stepsize_controller is not None:
         controller = stepsize_controller
@@ -135,14 +136,27 @@ def simulate(
         # docstring lists it): diffrax's default I controller rejected a quarter of RKMK87's
         # steps on the 5-body chain of `benchmarks/speed.py` (18 of 75 at rtol 1e-7).
         controller = diffrax.PIDController(rtol=rtol, atol=atol, pcoeff=0.4, icoeff=0.3)
-        if dt0 is None:
-            order = solver.error_order(term)
-            h = starting_step(term, t0, y0, None, error_order=order, rtol=rtol, atol=atol)
-            dt0 = jnp.where(t1 >= t0, h, -h)
     else:
-        if dt0 is None:
-            raise ValueError(f"{type(solver).__name__} takes fixed steps: pass `dt0`.")
         controller = diffrax.ConstantStepSize()
+    adaptive = isinstance(controller, diffrax.AbstractAdaptiveStepSizeController)
+    if adaptive:
+        warn_if_tolerance_too_tight(controller.rtol, y0[0].dtype)
+    if dt0 is None and adaptive and _is_adaptive(solver):
+        h = starting_step(
+            term,
+            t0,
+            y0,
+            None,
+            error_order=solver.error_order(term),
+            rtol=controller.rtol,
+            atol=controller.atol,
+        )
+        dt0 = jnp.where(t1 >= t0, h, -h)
+    elif dt0 is None and isinstance(controller, diffrax.ConstantStepSize):
+        raise ValueError(
+            f"{type(solver).__name__} with {type(controller).__name__} takes fixed steps: "
+            "pass `dt0`."
+        )
     sol = diffrax.diffeqsolve(
         term,
         solver,

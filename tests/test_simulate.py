@@ -126,6 +126,22 @@ def test_adaptive_solver_takes_fixed_steps_with_a_constant_controller():
     assert 7.5 < np.log2(errors[0] / errors[1]) < 8.5
 
 
+def test_a_given_adaptive_controller_starts_like_the_default():
+    """A `stepsize_controller` equal to the default PI controller gives the default's
+    solve step for step (the same starting step, from the controller's own tolerances);
+    `ConstantStepSize` without `dt0` asks for it."""
+    body = bd.RigidBody(1.0, np.zeros(3), np.diag(INERTIA))
+    state = bd.State(jnp.eye(4), xi=jnp.array([0.85, 0.0, 0.5, 0.0, 0.0, 0.0]))
+    scene = bd.Scene(body)
+    default = bd.simulate(scene, state, 5.0, rtol=1e-7, atol=1e-9)
+    pi = diffrax.PIDController(rtol=1e-7, atol=1e-9, pcoeff=0.4, icoeff=0.3)
+    given = bd.simulate(scene, state, 5.0, stepsize_controller=pi)
+    assert int(given.stats["num_steps"]) == int(default.stats["num_steps"])
+    np.testing.assert_array_equal(given.g, default.g)
+    with pytest.raises(ValueError, match="ConstantStepSize takes fixed steps: pass `dt0`"):
+        bd.simulate(scene, state, 5.0, stepsize_controller=diffrax.ConstantStepSize())
+
+
 FREE_CHAIN_STATE = bd.State(
     lie.se3_exp(jnp.array([0.1, -0.3, 0.2, 0.5, 0.0, -0.2])),
     0.3 * jnp.cos(jnp.arange(chain(5).shape_dim)),

@@ -42,7 +42,8 @@ _HIGHEST = lax.Precision.HIGHEST
 
 
 def _combine(w, stack):
-    """Σ_i w_i stack[..., i] (w a constant vector or a (m, s) matrix), at full precision.
+    """Σ_i w_i stack[..., i] at full precision: for weights `w` of shape (s,), shape
+    `stack.shape[:-1]`; for a (m, s) matrix, the m combinations stacked first.
 
     The stage axis is the stacks' last: under `vmap` the batch comes first, and a
     contraction over a leading stage axis made XLA's CPU copy the whole stack to bring that
