@@ -14,8 +14,9 @@ and no forces, written once as MJCF (`chain_mjcf`) and loaded by both MuJoCo and
    1e-13, checked against diffrax's Dopri8); wall time interpolated (log–log) at the error
    of MuJoCo RK4 with dt = 1e-2 and at 1e-10.
 3. **Batches**: `jax.vmap` of 1 s rollouts over 1024 initial states, each method at the
-   loosest tolerance (or longest step) that matches MuJoCo RK4 dt = 1e-2 in part 2, against
-   `mujoco.rollout` on 2 threads (and MJX when `mujoco.mjx` is installed).
+   loosest tolerance (or longest step) whose largest error over 16 rollouts of the batch is
+   at most MuJoCo RK4's with dt = 1e-2 on them, against `mujoco.rollout` on 2 threads (and
+   MJX when `mujoco.mjx` is installed).
 4. **Compile times** of `simulate` (n = 5, 20) and of its `jax.grad` (n = 20).
 5. **Gradients**: `jax.grad` of a loss on the 10 s rollout over the forward solve; peak
    memory of the gradient of a 10⁵-step rollout (RKMK4, fixed step, checkpointed).
@@ -35,7 +36,7 @@ Usage, from the repository root (needs the `bench` extra for MuJoCo)::
     python -m benchmarks.speed --report-only   # redraw the markdown from the JSON
     python -m benchmarks.speed --device-batch  # part 3 on a GPU: results/speed_gpu.{md,json}
 
-`--device-batch` runs on JAX's default device at the tolerances of the committed CPU run,
+`--device-batch` runs on JAX's default device at the settings of the committed CPU run,
 with MuJoCo on the host's CPU, for 1024 to 65536 rollouts, and reruns the first 64 on the
 host's CPU to show that the device computes the same trajectories.
 """
@@ -476,7 +477,44 @@ def batch_rollout(method, setting, t1, batch):
 
         return jax.vmap(one)(xi)
 
-    return run, s.xi + 0.05 * jax.random.normal(jax.random.key(0), (batch, 6))
+    return run, batch_twists(s, batch)
+
+
+def batch_twists(state, batch):
+    """Part 3's initial base twists: `state.xi` plus noise of 0.05, for `batch` rollouts."""
+    import jax
+
+    return state.xi + 0.05 * jax.random.normal(jax.random.key(0), (batch, 6))
+
+
+def batch_calibration(t1, quick, members=16):
+    """Part 3's settings: per method the loosest setting whose largest final-state error
+    over `members` rollouts of the batch is at most MuJoCo RK4's with dt = 1e-2 on the same
+    rollouts (errors against RKMK87 at rtol 1e-13), with the sweeps behind them."""
+    import bundledyn as bd
+
+    scene = chain_scene(5)
+    s = initial_state(scene)
+    twists = batch_twists(s, BATCH)[:: BATCH // members]
+    states = [bd.State(s.g, s.q, x, s.qdot) for x in twists]
+    reference = rollout_fn(scene, t1, "RKMK87")
+    refs = [reference(state, 1e-13)[0] for state in states]
+
+    def largest_error(final_of):
+        return max(state_error(final_of(st), ref) for st, ref in zip(states, refs, strict=True))
+
+    mujoco = largest_error(lambda st: mujoco_final_state(5, MUJOCO_DT, t1, scene, st)[0])
+    steps = range(2, 6) if quick else range(3, 16)
+    sweeps = {"adaptive": tuple(10.0**-k for k in range(4, 11)), "fixed": [t1 / n for n in steps]}
+    out = {"members": members, "mujoco_error": mujoco, "methods": {}}
+    for method, (solver, control) in METHODS.items():
+        run = rollout_fn(scene, t1, solver, control)
+        points = [
+            {"setting": x, "error": largest_error(lambda st, run=run, x=x: run(st, x)[0])}
+            for x in sweeps[control]
+        ]
+        out["methods"][method] = {"setting": setting_at_error(points, mujoco), "points": points}
+    return out
 
 
 def batch_sampler(method, setting, t1, batch=BATCH, threads=1):
@@ -894,13 +932,21 @@ def markdown(report):
                 f"| {p['error']:.2e} | {fmt(p['time'], 1e3)} |"
             )
     mjb = settings["bundledyn"]["mujoco_batch"]
+    cal = report["batch_calibration"]
     lines += [
         "",
         f"## 3. Batches of {BATCH} (5-body chain, 1 s)",
         "",
         "bundledyn: `jax.vmap(simulate)`, each method at the loosest tolerance (or longest "
-        "fixed step) at least as accurate as MuJoCo RK4 with dt = 1e-2 over 10 s (part 2). "
-        "Adaptive members of a `vmap`ped batch step in lockstep until the last is done; "
+        f"fixed step) whose largest final-state error over {cal['members']} rollouts of the "
+        "batch (against RKMK87 at rtol 1e-13) is at most MuJoCo RK4's with dt = 1e-2 on the "
+        f"same rollouts, {cal['mujoco_error']:.2g}: "
+        + ", ".join(
+            f"{m} {setting_label(m, c['setting'])} "
+            f"({next(p['error'] for p in c['points'] if p['setting'] == c['setting']):.2g})"
+            for m, c in cal["methods"].items()
+        )
+        + ". Adaptive members of a `vmap`ped batch step in lockstep until the last is done; "
         "fixed steps are the same for all. "
         f"MuJoCo: `mujoco.rollout`, RK4, dt = 1e-2, {mjb['threads']} threads, timed in "
         "alternation with bundledyn in each worker. “2 threads”: the batch in two halves, "
@@ -973,7 +1019,7 @@ def device_markdown(report):
     (baseline,) = (m for m in rows[0]["mujoco"] if m["threads"] == 2)
     # Results written before the fixed-step method name the settings `batch_rtol`.
     batch_settings = report.get("batch_setting") or report["batch_rtol"]
-    settings = ", ".join(f"{m} {setting_label(m, r)}" for m, r in batch_settings.items())
+    settings = ", ".join(f"{m} {setting_label(m, x)}" for m, x in batch_settings.items())
     lines = [
         f"# Batches on {report['device_batches']['device']}",
         "",
@@ -1049,7 +1095,7 @@ def main(argv=None):
     parser.add_argument(
         "--device-batch",
         action="store_true",
-        help="part 3 only, on JAX's default device (a GPU), at the tolerances of --out's "
+        help="part 3 only, on JAX's default device (a GPU), at the settings of --out's "
         "speed.json; writes speed_<platform>.{md,json}",
     )
     parser.add_argument("--worker", nargs=4, help=argparse.SUPPRESS)
@@ -1089,11 +1135,12 @@ def main(argv=None):
     report = {"environment": environment(), "repeats": repeats, "quick": args.quick}
     print("part 2: chain", flush=True)
     report["chain"] = chain_ten_seconds(repeats, args.quick)
-    coarse = report["chain"]["MuJoCo RK4"][0]["error"]
-    report["batch_setting"] = {
-        method: setting_at_error(report["chain"][method], coarse) for method in METHODS
-    }
     batch_t1 = 0.2 if args.quick else 1.0
+    print("part 3: batch settings", flush=True)
+    report["batch_calibration"] = batch_calibration(batch_t1, args.quick)
+    report["batch_setting"] = {
+        method: c["setting"] for method, c in report["batch_calibration"]["methods"].items()
+    }
     print("part 1: MuJoCo", flush=True)
     report["mujoco_field"] = {str(n): mujoco_rk4_step(n, repeats) for n in ns}
     report["mjx_batch"] = mjx_batch(5, BATCH, batch_t1, MUJOCO_DT, repeats)
