@@ -6,6 +6,8 @@ shape force $Q_H$. Conservative effects also give their potential $\\Pi(t, g, q)
 forces are $F_b = -\\partial_\\eta \\Pi(g\\exp\\hat\\eta, q)|_0$ (the seed's $\\mathcal L\\Pi$ with a sign)
 and $Q_H = -\\partial_q\\Pi$, by autodiff.
 Only the effects a scene names enter its compiled vector field.
+Their `potential` and `generalized_force` are compiled (`equinox.filter_jit`): called on
+concrete values, each runs as one program, not primitive by primitive.
 """
 
 import abc
@@ -66,6 +68,7 @@ class AbstractPotential(AbstractEffect):
     def potential(self, system: AbstractSystem, t, g, q):
         """$\\Pi(t, g, q)$, a scalar."""
 
+    @eqx.filter_jit
     def generalized_force(self, system, kin):
         def Pi(eta, q):
             return self.potential(system, kin.t, kin.g @ lie.se3_exp(eta), q)
@@ -111,6 +114,7 @@ class Gravity(AbstractPotential):
             None if centre_offset is None else jnp.asarray(centre_offset, dtype=float)
         )
 
+    @eqx.filter_jit
     def potential(self, system, t, g, q):
         m, c, _ = mass_and_centre(system.metric(q)[:6, :6])
         if self.gravitational_mass is not None:
@@ -154,6 +158,7 @@ class GravityGradient(AbstractPotential):
         quad = jnp.trace(l_world) - 3.0 * rho @ l_world @ rho / r2
         return -self.mu * m / r - 0.5 * self.mu * quad / (r2 * r)
 
+    @eqx.filter_jit
     def potential(self, system, t, g, q):
         R, p = g[:3, :3], g[:3, 3]
         if self.per_body:
@@ -188,6 +193,7 @@ class ShapePotential(AbstractPotential):
 
     fn: Callable
 
+    @eqx.filter_jit
     def potential(self, system, t, g, q):
         return self.fn(q)
 
@@ -208,6 +214,7 @@ class ShapeSpring(AbstractPotential):
         self.stiffness = jnp.asarray(stiffness, dtype=float)
         self.rest = jnp.asarray(rest, dtype=float)
 
+    @eqx.filter_jit
     def potential(self, system, t, g, q):
         K = _shape_matrix(self.stiffness, q.shape[0], "ShapeSpring.stiffness")
         dq = q - self.rest
@@ -227,6 +234,7 @@ class ShapeDamper(AbstractEffect):
     def __init__(self, c):
         self.c = jnp.asarray(c, dtype=float)
 
+    @eqx.filter_jit
     def generalized_force(self, system, kin):
         C = _shape_matrix(self.c, kin.q.shape[0], "ShapeDamper.c")
         return jnp.zeros(6, kin.q.dtype), -C @ kin.qdot
@@ -242,6 +250,7 @@ class ShapeForce(AbstractEffect):
 
     fn: Callable
 
+    @eqx.filter_jit
     def generalized_force(self, system, kin):
         return jnp.zeros(6, kin.q.dtype), self.fn(kin.t, kin.q, kin.qdot)
 
@@ -260,6 +269,7 @@ class ExternalWrench(AbstractEffect):
     fn: Callable
     body: int | None = eqx.field(static=True, default=None)
 
+    @eqx.filter_jit
     def generalized_force(self, system, kin):
         w = self.fn(kin.t, kin.g, kin.q, kin.xi, kin.qdot)
         if self.body is None:
