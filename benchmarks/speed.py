@@ -571,8 +571,7 @@ def batch_throughput(batch_settings, t1, repeats, batch=BATCH, threads=(2,), spl
         for k in split:
             name = method if k == 1 else f"{method}, {k} threads"
             samplers[name], steps, first[name] = batch_sampler(method, setting, t1, batch, k)
-            settings[name] = {"method": method, "threads": k, "setting": setting}
-            settings[name]["mean_steps"] = steps
+            settings[name] = dict(method=method, threads=k, setting=setting, mean_steps=steps)
     for k in threads:
         samplers[f"MuJoCo {k}"], mujoco[k] = mujoco_batch(5, batch, t1, MUJOCO_DT, k)
     timings = interleaved(samplers, repeats)

@@ -61,15 +61,17 @@ def euler_top(t, omega0):
     return omega(t), R_align @ euler_zxz(phi, theta, psi)
 
 
+# The Dzhanibekov body: near the separatrix through the intermediate axis (elliptic modulus
+# k² = 0.963) it flips over and over, the classic hard case for attitude integration.
+OMEGA0 = np.array([0.85, 0.0, 0.5])
+DZHANIBEKOV = bd.Scene(bd.RigidBody(1.0, np.zeros(3), np.diag(INERTIA)))
+DZHANIBEKOV_STATE = bd.State(jnp.eye(4), xi=jnp.concatenate([OMEGA0, jnp.zeros(3)]))
+
+
 def test_torque_free_body_matches_jacobi_elliptic_solution():
     """Dzhanibekov: ω and attitude at t = 20 to 1e-8 with rtol = 1e-10 (default solver)."""
-    body = bd.RigidBody(1.0, np.zeros(3), np.diag(INERTIA))
-    # Near the separatrix through the intermediate axis (elliptic modulus k² = 0.963): the
-    # body flips over and over, the classic hard case for attitude integration.
-    omega0 = np.array([0.85, 0.0, 0.5])
-    state = bd.State(jnp.eye(4), xi=jnp.concatenate([omega0, jnp.zeros(3)]))
-    traj = bd.simulate(bd.Scene(body), state, 20.0, rtol=1e-10, atol=1e-12)
-    omega_exact, R_exact = euler_top(20.0, omega0)
+    traj = bd.simulate(DZHANIBEKOV, DZHANIBEKOV_STATE, 20.0, rtol=1e-10, atol=1e-12)
+    omega_exact, R_exact = euler_top(20.0, OMEGA0)
     np.testing.assert_allclose(traj.xi[-1, :3], omega_exact, atol=1e-8)
     np.testing.assert_allclose(traj.g[-1, :3, :3], R_exact, atol=1e-8)
     assert traj.orthogonality_error().max() < 1e-13
@@ -81,15 +83,12 @@ def test_default_solver_is_the_cheaper_and_more_accurate_at_default_tolerance():
     steps, where its dense output is only of fifth order, with fewer field evaluations.
     Measured: errors 8.9e-9 against 1.0e-7 at t1, at most 3.5e-8 against 8.0e-8 at the saved
     times, with 29 steps (406 evaluations) against 84 (588)."""
-    body = bd.RigidBody(1.0, np.zeros(3), np.diag(INERTIA))
-    omega0 = np.array([0.85, 0.0, 0.5])
-    state = bd.State(jnp.eye(4), xi=jnp.concatenate([omega0, jnp.zeros(3)]))
     ts = np.linspace(0.37, 20.0, 9)
     saveat = diffrax.SaveAt(ts=jnp.asarray(ts))
-    exact = [euler_top(t, omega0) for t in ts]
+    exact = [euler_top(t, OMEGA0) for t in ts]
     errors, evaluations = {}, {}
     for solver in (None, bd.RKMK54()):
-        traj = bd.simulate(bd.Scene(body), state, 20.0, solver=solver, saveat=saveat)
+        traj = bd.simulate(DZHANIBEKOV, DZHANIBEKOV_STATE, 20.0, solver=solver, saveat=saveat)
         name = type(solver).__name__ if solver else "default"
         errors[name] = [
             max(np.abs(traj.xi[i, :3] - w).max(), np.abs(traj.g[i, :3, :3] - R).max())
@@ -107,17 +106,16 @@ def test_adaptive_solver_takes_fixed_steps_with_a_constant_controller():
     exactly (t1 - t0)/dt0 steps, and its error against the closed form falls at its order.
     Measured on the Dzhanibekov body over 20 s: 8.3e-10 with 40 steps, 3.3e-12 with 80, an
     order of 8.0."""
-    body = bd.RigidBody(1.0, np.zeros(3), np.diag(INERTIA))
-    omega0 = np.array([0.85, 0.0, 0.5])
-    state = bd.State(jnp.eye(4), xi=jnp.concatenate([omega0, jnp.zeros(3)]))
     constant = diffrax.ConstantStepSize()
 
     @jax.jit
     def run(dt):
-        traj = bd.simulate(bd.Scene(body), state, 20.0, dt0=dt, stepsize_controller=constant)
+        traj = bd.simulate(
+            DZHANIBEKOV, DZHANIBEKOV_STATE, 20.0, dt0=dt, stepsize_controller=constant
+        )
         return traj.xi[-1, :3], traj.g[-1, :3, :3], traj.stats["num_steps"]
 
-    omega_exact, R_exact = euler_top(20.0, omega0)
+    omega_exact, R_exact = euler_top(20.0, OMEGA0)
     errors = []
     for n in (40, 80):
         omega, R, steps = run(20.0 / n)
@@ -130,9 +128,7 @@ def test_a_given_adaptive_controller_starts_like_the_default():
     """A `stepsize_controller` equal to the default PI controller gives the default's
     solve step for step (the same starting step, from the controller's own tolerances);
     `ConstantStepSize` without `dt0` asks for it."""
-    body = bd.RigidBody(1.0, np.zeros(3), np.diag(INERTIA))
-    state = bd.State(jnp.eye(4), xi=jnp.array([0.85, 0.0, 0.5, 0.0, 0.0, 0.0]))
-    scene = bd.Scene(body)
+    scene, state = DZHANIBEKOV, DZHANIBEKOV_STATE
     default = bd.simulate(scene, state, 5.0, rtol=1e-7, atol=1e-9)
     pi = diffrax.PIDController(rtol=1e-7, atol=1e-9, pcoeff=0.4, icoeff=0.3)
     given = bd.simulate(scene, state, 5.0, stepsize_controller=pi)
@@ -341,11 +337,10 @@ def test_stock_diffrax_solver_on_the_embedding():
     """A stock diffrax solver integrates the pose in its 4×4 embedding: accurate, but its
     rotation drifts off SO(3) by its local error (projected back on output, drift reported),
     which the Lie-group solvers avoid."""
-    body = bd.RigidBody(1.0, np.zeros(3), np.diag(INERTIA))
-    state = bd.State(jnp.eye(4), xi=jnp.array([0.85, 0.0, 0.5, 0.0, 0.0, 0.0]))
-    stock = bd.simulate(bd.Scene(body), state, 20.0, solver=diffrax.Tsit5(), rtol=1e-8, atol=1e-8)
-    lie_group = bd.simulate(bd.Scene(body), state, 20.0, rtol=1e-8, atol=1e-8)
-    omega_exact, R_exact = euler_top(20.0, np.array([0.85, 0.0, 0.5]))
+    scene, state = DZHANIBEKOV, DZHANIBEKOV_STATE
+    stock = bd.simulate(scene, state, 20.0, solver=diffrax.Tsit5(), rtol=1e-8, atol=1e-8)
+    lie_group = bd.simulate(scene, state, 20.0, rtol=1e-8, atol=1e-8)
+    omega_exact, R_exact = euler_top(20.0, OMEGA0)
     for traj in (stock, lie_group):
         np.testing.assert_allclose(traj.xi[-1, :3], omega_exact, atol=1e-5)
         np.testing.assert_allclose(traj.g[-1, :3, :3], R_exact, atol=1e-5)
