@@ -6,8 +6,9 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
+import scipy.linalg
 
-from bundledyn._linalg import einsum, inverse_3x3, matmul, spd_inverse_6x6
+from bundledyn._linalg import einsum, expm, inverse_3x3, matmul, spd_inverse_6x6
 from bundledyn._systems._rigid_body import spatial_inertia
 
 
@@ -173,3 +174,52 @@ def test_matmul_follows_jnp_matmul_and_its_derivatives():
             np.testing.assert_allclose(got, want, rtol=1e-13, atol=1e-14)
     vmapped = jax.vmap(matmul)(rng.standard_normal((7, 6, 6)), rng.standard_normal((7, 6)))
     assert vmapped.shape == (7, 6)
+
+
+EXPM_NORMS = (1e-12, 1e-3, 0.25, 0.3, 1.0, 7.0, 60.0, 250.0)  # ‖S‖∞: no squaring up to 1/4
+
+
+def _matrices_of_norm(rng, norm, count=20):
+    """Symmetric (the affine body's stretch) and general 3×3 matrices with ‖S‖∞ = norm."""
+    out = []
+    for i in range(count):
+        M = rng.standard_normal((3, 3))
+        M = M + M.T if i % 2 else M
+        out.append(M * norm / np.abs(M).sum(axis=1).max())
+    return out
+
+
+@pytest.mark.parametrize("norm", EXPM_NORMS)
+def test_expm_matches_scipy(norm):
+    """Relative error against SciPy's expm within 4× that of `jax.scipy.linalg.expm` (the
+    problem's own conditioning grows with the norm) or 4 ulps."""
+    ours, theirs = [], []
+    for M in _matrices_of_norm(np.random.default_rng(7), norm):
+        ref = scipy.linalg.expm(M)
+        for values, errors in ((expm(M), ours), (jax.scipy.linalg.expm(M), theirs)):
+            errors.append(np.abs(values - ref).max() / np.abs(ref).max())
+    assert max(ours) <= 4 * max(max(theirs), np.finfo(float).eps)
+
+
+def test_expm_derivatives_match_jax_scipy_expm():
+    """First and second derivatives (what the affine body's metric jet uses), forward and
+    reverse, against those of `jax.scipy.linalg.expm` (Padé, LU), at zero, across a
+    squaring boundary (‖S‖∞ = 1/4, 1/2) and at larger norms."""
+    rng = np.random.default_rng(3)
+    for norm in (0.0, 0.25, 0.5, 3.0, 40.0):
+        M = _matrices_of_norm(rng, max(norm, 1.0), 2)[1] * (norm / max(norm, 1.0))
+        for derivative in (jax.jacfwd, jax.jacrev, lambda f: jax.jacfwd(jax.jacrev(f))):
+            ours = derivative(expm)(M)
+            ref = derivative(jax.scipy.linalg.expm)(M)
+            assert np.all(np.isfinite(ours))
+            np.testing.assert_allclose(ours, ref, rtol=0, atol=1e-13 * np.abs(ref).max())
+
+
+def test_expm_at_zero_and_past_its_range():
+    """At S = 0 (where the scaling's log2 ‖S‖ is singular) e^S = 1 and its derivative is the
+    identity map, exactly; past ‖S‖∞ = 256 the result is NaN, not a wrong number."""
+    zero = jnp.zeros((3, 3))
+    np.testing.assert_array_equal(expm(zero), np.eye(3))
+    np.testing.assert_array_equal(jax.jacrev(expm)(zero), np.eye(9).reshape(3, 3, 3, 3))
+    assert np.all(np.isnan(expm(jnp.diag(jnp.array([300.0, 0.0, 0.0])))))
+    assert np.all(np.isfinite(expm(jnp.diag(jnp.array([256.0, 0.0, 0.0])))))

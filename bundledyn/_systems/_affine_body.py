@@ -5,6 +5,7 @@ import jax.numpy as jnp
 from jaxtyping import Array, Float
 
 from .. import lie
+from .._linalg import expm
 from ._base import AbstractSystem
 from ._validation import check_mass, check_shape, check_spd
 
@@ -24,9 +25,11 @@ def stretch(q: Float[Array, " 6"]) -> Float[Array, "3 3"]:
     """The stretch $U(q) = \\exp(\\operatorname{sym}(q))$: symmetric positive definite for every $q$.
 
     The matrix exponential of a symmetric matrix cannot leave the SPD cone, so no shape
-    coordinate value is forbidden; $q = 0$ is the undeformed body.
+    coordinate value leaves it; $q = 0$ is the undeformed body. Computed by `expm`
+    (Taylor series, scaling and squaring), which is NaN past
+    $\\|\\operatorname{sym}(q)\\|_\\infty = 256$: principal stretches beyond $e^{\\pm 256}$.
     """
-    return jax.scipy.linalg.expm(symmetric_from_vector(q))
+    return expm(symmetric_from_vector(q))
 
 
 class AffineBody(AbstractSystem):
