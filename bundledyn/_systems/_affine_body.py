@@ -32,6 +32,96 @@ def stretch(q: Float[Array, " 6"]) -> Float[Array, "3 3"]:
     return expm(symmetric_from_vector(q))
 
 
+def _divided_differences_of_exp(lam: Float[Array, " 3"], order: int):
+    """The divided differences of $\\exp$ at the eigenvalues, up to `order` (static, 1–3).
+
+    Opitz: the exponential of the bidiagonal matrix with $x_0, \\dots, x_r$ on its diagonal
+    and ones above holds $e^{[x_0, \\dots, x_r]}$ at $(0, r)$, for equal arguments too
+    (where quotients of differences cancel).
+
+    **Returns:**
+
+    A list: `D[r - 1][i_0, ..., i_r]` $= e^{[\\lambda_{i_0}, \\dots, \\lambda_{i_r}]}$.
+    """
+    n = order + 1
+    grids = jnp.meshgrid(*[lam] * n, indexing="ij")
+    diagonals = jnp.stack([x.ravel() for x in grids], -1)  # (3^n, n)
+    B = jax.vmap(jnp.diag)(diagonals) + jnp.eye(n, k=1, dtype=lam.dtype)
+    first_row = jax.vmap(expm)(B)[:, 0].reshape(*grids[0].shape, n)
+    return [first_row[(...,) + (0,) * (order - r) + (r,)] for r in range(1, n)]
+
+
+def _eigen_frame(q):
+    """$\\operatorname{sym}(q) = V\\Lambda V^T$ and the coordinate directions in that frame,
+    $\\tilde E_k = V^T(\\partial_k \\operatorname{sym})V$, `(6, 3, 3)`."""
+    lam, V = jnp.linalg.eigh(symmetric_from_vector(q))
+    basis = symmetric_from_vector(jnp.eye(6, dtype=q.dtype))
+    return lam, V, jnp.einsum("ai,kab,bj->kij", V, basis, V)
+
+
+@jax.custom_jvp
+def stretch_derivatives(q: Float[Array, " 6"]):
+    """$U(q)$ with its first and second derivatives, by the Daleckii–Krein formulas.
+
+    (Daleckiĭ & Kreĭn 1965; Higham, *Functions of Matrices*, 2008, ch. 3, where the divided
+    differences of Opitz's bidiagonal form are too.)
+
+    With $\\operatorname{sym}(q) = V\\Lambda V^T$ and $\\tilde E_k = V^T (\\partial_k\\operatorname{sym}) V$,
+    $\\partial_k U = V\\,(e^{[\\lambda_i,\\lambda_j]}\\,\\tilde E_{k,ij})\\,V^T$ and
+    $\\partial_k\\partial_l U = V\\big(\\sum_m e^{[\\lambda_i,\\lambda_m,\\lambda_j]}
+    (\\tilde E_{k,im}\\tilde E_{l,mj} + \\tilde E_{l,im}\\tilde E_{k,mj})\\big)V^T$: one symmetric
+    eigendecomposition and elementwise work, where forward-mode autodiff of `expm` twice
+    carries 49 tangent streams through its 21 products. Differentiated, the tangent holds
+    the third derivatives in the same form (`_stretch_third_derivatives`); the eigenvectors,
+    undefined where eigenvalues repeat (at $q = 0$ all three do), are never differentiated.
+
+    **Arguments:**
+
+    - `q`: shape coordinates, `(6,)`.
+
+    **Returns:**
+
+    `(U, dU, d2U)`: `U` `(3, 3)`; `dU[..., k]` $= \\partial_k U$, `(3, 3, 6)`;
+    `d2U[..., k, l]` $= \\partial_k\\partial_l U$, `(3, 3, 6, 6)` (the layout of `jax.jacfwd`).
+    """
+    lam, V, E = _eigen_frame(q)
+    D1, D2 = _divided_differences_of_exp(lam, 2)
+    U = (V * jnp.exp(lam)) @ V.T
+    dU = jnp.einsum("ai,kij,bj->abk", V, D1 * E, V)
+    pairs = jnp.einsum("imj,kim,lmj->klij", D2, E, E)
+    d2U = jnp.einsum("ai,klij,bj->abkl", V, pairs + jnp.swapaxes(pairs, 0, 1), V)
+    return U, dU, d2U
+
+
+@stretch_derivatives.defjvp
+def _stretch_derivatives_jvp(primals, tangents):
+    (q,), (q_dot,) = primals, tangents
+    U, dU, d2U = stretch_derivatives(q)
+    return (U, dU, d2U), (dU @ q_dot, d2U @ q_dot, _stretch_third_derivatives(q) @ q_dot)
+
+
+@jax.custom_jvp
+def _stretch_third_derivatives(q):
+    """$\\partial_k\\partial_l\\partial_p U$, `(3, 3, 6, 6, 6)`: Daleckii–Krein with the third
+    divided differences, $V\\big(\\sum_{m,n} e^{[\\lambda_i,\\lambda_m,\\lambda_n,\\lambda_j]}
+    \\sum_\\sigma \\tilde E_{\\sigma_1,im}\\tilde E_{\\sigma_2,mn}\\tilde E_{\\sigma_3,nj}\\big)V^T$ over
+    the orderings $\\sigma$ of $(k, l, p)$. The tangent of `stretch_derivatives` is this
+    contracted with $\\dot q$, a product JAX transposes without looking inside, so that
+    differentiating a gradient never reaches the eigenvectors either."""
+    lam, V, E = _eigen_frame(q)
+    (D3,) = _divided_differences_of_exp(lam, 3)[2:]
+    ordered = jnp.einsum("imnj,kim,lmn,pnj->klpij", D3, E, E, E)
+    orderings = ((0, 1, 2), (0, 2, 1), (1, 0, 2), (1, 2, 0), (2, 0, 1), (2, 1, 0))
+    summed = sum(jnp.transpose(ordered, (*o, 3, 4)) for o in orderings)
+    return jnp.einsum("ai,klpij,bj->abklp", V, summed, V)
+
+
+@_stretch_third_derivatives.defjvp
+def _stretch_third_derivatives_jvp(primals, tangents):
+    # Reached only by second-order differentiation: autodiff of `expm`, not of eigenvectors.
+    return jax.jvp(jax.jacfwd(jax.jacfwd(jax.jacfwd(stretch))), primals, tangents)
+
+
 class AffineBody(AbstractSystem):
     """An affinely deformable body, $x = c + F X$ with $F = R\\,U(q)$ (seed 004, §4, (4.3)).
 
@@ -68,11 +158,37 @@ class AffineBody(AbstractSystem):
     def metric(self, q):
         U = stretch(q)
         dU = jax.jacfwd(stretch)(q)  # (3, 3, 6): dU[..., k] = dU/dq_k
-        # Ḟ = R W·(ω, q̇) with W = [ê_1 U, ê_2 U, ê_3 U, dU/dq_1, ..., dU/dq_6].
-        W = jnp.concatenate([lie.hat(jnp.eye(3, dtype=q.dtype)) @ U, jnp.moveaxis(dU, -1, 0)])
+        return self._metric_from(self._velocity_maps(U, dU))
+
+    def metric_and_derivative(self, q):
+        """$G(q)$ and $\\partial G/\\partial q_l$ in closed form, from `stretch_derivatives`.
+
+        With $W$ as in `metric`, $K_{ab} = \\operatorname{tr}(W_a E W_b^T)$ and
+        $\\partial_l K_{ab} = \\operatorname{tr}(\\partial_l W_a E W_b^T) + (a \\leftrightarrow b)$,
+        where $\\partial_l W = [\\hat e_i\\,\\partial_l U,\\ \\partial_l\\partial_k U]$.
+        """
+        U, dU, d2U = stretch_derivatives(q)
+        W = self._velocity_maps(U, dU)
+        dW = jax.vmap(self._velocity_maps, in_axes=(-1, -1))(dU, d2U)  # (l, a, 3, 3)
+        P = jnp.einsum("laij,jk,bik->lab", dW, self.second_moment, W)
+        dK = P + jnp.swapaxes(P, 1, 2)
+        zero = jnp.zeros((), q.dtype)
+        return self._metric_from(W), jax.vmap(lambda K: self._assemble(K, zero))(dK)
+
+    @staticmethod
+    def _velocity_maps(U, dU):
+        """$W = [\\hat e_1 U, \\hat e_2 U, \\hat e_3 U, \\partial_1 U, \\dots, \\partial_6 U]$, with
+        $\\dot F = R\\,W\\cdot(\\omega, \\dot q)$."""
+        return jnp.concatenate([lie.hat(jnp.eye(3, dtype=U.dtype)) @ U, jnp.moveaxis(dU, -1, 0)])
+
+    def _metric_from(self, W):
         K = jnp.einsum("aij,jk,bik->ab", W, self.second_moment, W)  # tr(W_a E W_bᵀ)
-        d = self.shape_dim
-        G = jnp.zeros((6 + d, 6 + d), q.dtype)
+        return self._assemble(K, self.mass)
+
+    @staticmethod
+    def _assemble(K, mass):
+        """$G$ from $K$ (rows and columns $\\omega, \\dot q$) and the translational block $m\\mathbf 1$."""
+        G = jnp.zeros((12, 12), K.dtype)
         G = G.at[:3, :3].set(K[:3, :3]).at[:3, 6:].set(K[:3, 3:])
         G = G.at[6:, :3].set(K[3:, :3]).at[6:, 6:].set(K[3:, 3:])
-        return G.at[3:6, 3:6].set(self.mass * jnp.eye(3, dtype=q.dtype))
+        return G.at[3:6, 3:6].set(mass * jnp.eye(3, dtype=K.dtype))
