@@ -202,8 +202,10 @@ def expm(S: Float[Array, "n n"]) -> Float[Array, "n n"]:
     *Nineteen dubious ways to compute the exponential of a matrix*, method 3).
     `jax.scipy.linalg.expm` chooses among five Padé orders with a `switch`, solves
     $Q^{-1}P$ by LU and squares under a `cond` per step. Differentiated twice (the affine
-    body's metric jet) it made that body's vector field take 4.3–5.5 s to trace and
-    compile against 3.0–3.4 s, and each evaluation 5–40 % longer (alternating runs).
+    body's metric jet by autodiff, before it had a closed form) it made that body's vector
+    field take 4.3–5.5 s to trace and compile against 3.0–3.4 s, and each evaluation 5–40 %
+    longer (alternating runs). The affine body's stretch, its divided differences (batches
+    of bidiagonal matrices) and the autodiff behind its jet's derivatives use this one.
     Here the work is eleven products, ten squarings and selects, differentiable in both
     modes; the products stay `dot`s (as fused broadcasts the chain was 5× slower).
     $k$ is piecewise constant in $S$ and is not differentiated: the result is $e^S$ for
