@@ -39,9 +39,11 @@ PARAMS = jnp.concatenate([THREE_STATE.xi, THREE.mass, jnp.array([2.0])])
 
 @functools.cache
 def _finite_difference_gradient(h=1e-5):
-    steps = h * jnp.eye(PARAMS.shape[0])
-    loss = jax.vmap(_rollout_loss)
-    return jax.jit(lambda: (loss(PARAMS + steps) - loss(PARAMS - steps)) / (2 * h))()
+    # One compiled unbatched solve called 20 times: 3.5 s, where a vmap of them took 9 s.
+    loss = jax.jit(_rollout_loss)
+    return np.array(
+        [(loss(PARAMS + e) - loss(PARAMS - e)) / (2 * h) for e in h * np.eye(PARAMS.shape[0])]
+    )
 
 
 def test_gradient_through_simulate_matches_finite_differences():
