@@ -288,7 +288,7 @@ class Multibody(AbstractSystem):
             return T
         return matmul(lie.se3_inv(T[self.section]), T)
 
-    def _shape_columns(self, q, T, screw_nodes, ball_nodes, S_ball):
+    def _shape_columns(self, T, screw_nodes, ball_nodes, S_ball):
         """$Z$: every joint column as a twist in the base frame, shape (6, d)."""
         Z_screw = einsum("kij,kj->ik", lie.Ad(take(T, screw_nodes)), self.screw_axes)
         Z_ball = einsum("kij,kjl->ikl", lie.Ad(take(T, ball_nodes)), S_ball).reshape(6, -1)
@@ -315,7 +315,7 @@ class Multibody(AbstractSystem):
         """Node poses, ball nodes, joint columns $Z$, body poses $r_a$ and $\\hat J_a$."""
         T, screw_nodes, ball_nodes, S_ball = self._node_poses(q)
         T_body = take(T, self._tables.body_last)
-        Z = self._shape_columns(q, T, screw_nodes, ball_nodes, S_ball)
+        Z = self._shape_columns(T, screw_nodes, ball_nodes, S_ball)
         mask = _column_tables(self._tables)[0]
         if self.section != 0:
             # Velocities relative to the section body, seen in its frame.
@@ -383,8 +383,8 @@ class Multibody(AbstractSystem):
 
     def _ball_column_derivative(self, q, T, ball_nodes):
         """$\\operatorname{Ad}_{T} \\partial S_i/\\partial\\varphi_l$ of each ball joint's own columns."""
-        starts = np.array(self._tables.q_start)[ball_nodes]
-        phi = take(q, starts[:, None] + np.arange(3))
+        cols = np.array(self._tables.q_start)[ball_nodes][:, None] + np.arange(3)
+        phi = take(q, cols)
 
         def columns(p, a):
             Jr = lie.so3_dexp(p)
@@ -393,7 +393,6 @@ class Multibody(AbstractSystem):
         dS = jax.vmap(jax.jacfwd(columns))(phi, self.ball_anchors)  # (k, 6, i, l)
         values = jnp.einsum("kxy,kyil->kilx", lie.Ad(take(T, ball_nodes)), dS)
         # Placed by products with constant 0/1 tables, not a scatter-add (a loop on XLA's CPU).
-        cols = starts[:, None] + np.arange(3)
         place = (cols[..., None] == np.arange(self.shape_dim)).astype(values.dtype)
         return jnp.einsum("klm,kin,kilx->mxn", place, place, values)
 
