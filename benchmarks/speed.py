@@ -14,12 +14,13 @@ and no forces, written once as MJCF (`chain_mjcf`) and loaded by both MuJoCo and
    1e-13, checked against diffrax's Dopri8); wall time interpolated (log–log) at the error
    of MuJoCo RK4 with dt = 1e-2 and at 1e-10.
 3. **Batches**: `jax.vmap` of 1 s rollouts over 1024 initial states, each method at the
-   loosest tolerance (or longest step) whose largest error over 16 rollouts of the batch is
-   at most MuJoCo RK4's with dt = 1e-2 on them, against `mujoco.rollout` on 2 threads (and
-   MJX when `mujoco.mjx` is installed).
+   loosest tolerance (1, 2, 5 per decade) or longest step whose largest error over 16
+   rollouts of the batch is at most MuJoCo RK4's with dt = 1e-2 on them, against
+   `mujoco.rollout` on 2 threads (and MJX when `mujoco.mjx` is installed).
 4. **Compile times** of `simulate` (n = 5, 20) and of its `jax.grad` (n = 20).
-5. **Gradients**: `jax.grad` of a loss on the 10 s rollout over the forward solve; peak
-   memory of the gradient of a 10⁵-step rollout (RKMK4, fixed step, checkpointed).
+5. **Gradients**: `jax.grad` of a loss on the 10 s rollout over the forward solve, timed in
+   alternation with a profile of where its time goes (the field, a step and their VJPs);
+   peak memory of the gradient of a 10⁵-step rollout (RKMK4, fixed step, checkpointed).
 
 Parts 1, 3 and 4 run twice, in fresh worker processes: with XLA's defaults and with
 `bundledyn.CPU_XLA_FLAGS` (XLA reads its flags when the backend starts).
@@ -315,29 +316,31 @@ def mjx_batch(n, batch, t1, dt, repeats):
 # ------------------------------------------------------------------------------- bundledyn
 
 
-def field_sampler(n):
-    """A sampler of seconds per vector-field evaluation inside a compiled loop (each
-    evaluation depends on the last)."""
+def loop_sampler(fn, y, calls):
+    """A sampler of seconds per call of `fn(i, y)` (a pytree shaped as `y`) inside a
+    compiled `fori_loop`, each call depending on the last (no dispatch)."""
     import jax
 
-    from bundledyn._simulate import initial_condition
-
-    scene = chain_scene(n)
-    y = initial_condition(scene, initial_state(scene), 0.0)
-
     def body(i, y):
-        dy = scene.vector_field(1e-6 * i, y, None)
-        return jax.tree.map(lambda a, b: a + 1e-6 * b, y, dy)
+        return jax.tree.map(lambda a, b: a + 1e-6 * b, y, fn(i, y))
 
-    loop = jax.jit(lambda y: jax.lax.fori_loop(0, LOOP_EVALS, body, y))
-    run = blocking(loop, y)
+    run = blocking(jax.jit(lambda y: jax.lax.fori_loop(0, calls, body, y)), y)
 
     def sample():
         start = time.perf_counter()
         run()
-        return (time.perf_counter() - start) / LOOP_EVALS
+        return (time.perf_counter() - start) / calls
 
     return sample
+
+
+def field_sampler(n):
+    """A sampler of seconds per vector-field evaluation of the n-body chain (`loop_sampler`)."""
+    from bundledyn._simulate import initial_condition
+
+    scene = chain_scene(n)
+    y = initial_condition(scene, initial_state(scene), 0.0)
+    return loop_sampler(lambda i, y: scene.vector_field(1e-6 * i, y, None), y, LOOP_EVALS)
 
 
 def field_cost(n, repeats):
@@ -505,7 +508,10 @@ def batch_calibration(t1, quick, members=16):
 
     mujoco = largest_error(lambda st: mujoco_final_state(5, MUJOCO_DT, t1, scene, st)[0])
     steps = range(2, 6) if quick else range(3, 16)
-    sweeps = {"adaptive": tuple(10.0**-k for k in range(4, 11)), "fixed": [t1 / n for n in steps]}
+    # Tolerances at 1, 2 and 5 per decade, as fine a grid as the fixed steps' 3 to 15 per
+    # second: with decades only, an adaptive method ran up to 3.3x more accurate than MuJoCo.
+    rtols = [float(f"{m}e-{k}") for k in range(5, 11) for m in (10, 5, 2)]
+    sweeps = {"adaptive": rtols, "fixed": [t1 / n for n in steps]}
     out = {"members": members, "mujoco_error": mujoco, "methods": {}}
     for method, (solver, control) in METHODS.items():
         run = rollout_fn(scene, t1, solver, control)
@@ -654,8 +660,9 @@ def _compile_seconds(jitted, *args):
     }
 
 
-def gradient_cost(repeats, t1):
-    """Part 5a: `jax.grad` of a loss on the rollout over the forward solve (checkpointed)."""
+def gradient_cost(repeats, t1, rtol=1e-6):
+    """Part 5a: `jax.grad` of a loss on the rollout over the forward solve (checkpointed),
+    timed in alternation with the units of `gradient_units`."""
     import jax
     import jax.numpy as jnp
 
@@ -665,23 +672,53 @@ def gradient_cost(repeats, t1):
     s = initial_state(scene)
 
     def loss(xi):
-        traj = bd.simulate(scene, bd.State(s.g, s.q, xi, s.qdot), t1, rtol=1e-6, atol=1e-8)
+        state = bd.State(s.g, s.q, xi, s.qdot)
+        traj = bd.simulate(scene, state, t1, rtol=rtol, atol=rtol * 1e-2)
         return jnp.sum(traj.g[-1, :3, 3] ** 2) + jnp.sum(traj.q[-1] ** 2)
 
-    timings = interleaved(
-        {
-            "forward": blocking(jax.jit(loss), s.xi),
-            "grad": blocking(jax.jit(jax.grad(loss)), s.xi),
-        },
-        repeats,
-    )
+    units, profile = gradient_units(scene, s, t1, rtol)
+    samplers = {
+        "forward": blocking(jax.jit(loss), s.xi),
+        "grad": blocking(jax.jit(jax.grad(loss)), s.xi),
+    }
+    timings = interleaved(samplers | units, repeats)
     (_, forward), (first, grad) = timings["forward"], timings["grad"]
     return {
         "forward": forward,
         "grad": grad,
         "grad_compile": max(first - grad["median"], 0.0),
         "ratio": grad["median"] / forward["median"],
+        "profile": profile | {k: timings[k][1] for k in units},
     }
+
+
+def gradient_units(scene, state, t1, rtol):
+    """Part 5c: samplers of where the gradient's time goes, per call in compiled loops
+    (`loop_sampler`): the vector field, one `RKMK87` step at the forward solve's mean
+    step, and their VJPs; with the solve's steps (accepted and rejected)."""
+    import jax
+
+    import bundledyn as bd
+    from bundledyn._scene import SceneTerm
+    from bundledyn._simulate import initial_condition
+
+    y = initial_condition(scene, state, 0.0)
+    steps = int(bd.simulate(scene, state, t1, rtol=rtol, atol=rtol * 1e-2).stats["num_steps"])
+    term, solver = SceneTerm(scene), bd.RKMK87(dense_output=False)
+
+    def field(i, y):
+        return scene.vector_field(0.0, y, None)
+
+    def step(i, y):
+        return solver.step(term, 0.0, t1 / steps, y, None, None, False)[0]
+
+    def vjp(fn):
+        return lambda i, y: jax.vjp(lambda y: fn(i, y), y)[1](y)[0]
+
+    units = {"field": field, "field_vjp": vjp(field), "step": step, "step_vjp": vjp(step)}
+    calls = {"field": LOOP_EVALS, "step": LOOP_EVALS // 10}
+    samplers = {k: loop_sampler(fn, y, calls[k.split("_")[0]]) for k, fn in units.items()}
+    return samplers, {"steps": steps, "stages": solver.tableau.step_stages}
 
 
 def gradient_memory(steps):
@@ -936,10 +973,10 @@ def markdown(report):
         "",
         f"## 3. Batches of {BATCH} (5-body chain, 1 s)",
         "",
-        "bundledyn: `jax.vmap(simulate)`, each method at the loosest tolerance (or longest "
-        f"fixed step) whose largest final-state error over {cal['members']} rollouts of the "
-        "batch (against RKMK87 at rtol 1e-13) is at most MuJoCo RK4's with dt = 1e-2 on the "
-        f"same rollouts, {cal['mujoco_error']:.2g}: "
+        "bundledyn: `jax.vmap(simulate)`, each method at the loosest tolerance (rtol at 1, 2 "
+        "and 5 per decade) or longest fixed step whose largest final-state error over "
+        f"{cal['members']} rollouts of the batch (against RKMK87 at rtol 1e-13) is at most "
+        f"MuJoCo RK4's with dt = 1e-2 on the same rollouts, {cal['mujoco_error']:.2g}: "
         + ", ".join(
             f"{m} {setting_label(m, c['setting'])} "
             f"({next(p['error'] for p in c['points'] if p['setting'] == c['setting']):.2g})"
@@ -1009,7 +1046,49 @@ def markdown(report):
         f"{(m['xla_temp_bytes'] or 0) / 1e6:.2f} MB, {m['seconds']:.1f} s, gradient finite: "
         f"{m['grad_finite']}.",
     ]
-    return "\n".join(lines) + "\n"
+    return "\n".join(lines + gradient_profile_lines(report)) + "\n"
+
+
+def gradient_profile_lines(report):
+    """Part 5c's markdown: the units' costs and the gradient of part 5a accounted by them."""
+    g = report["gradient"]
+    p = g["profile"]
+    med = {k: p[k]["median"] for k in ("field", "field_vjp", "step", "step_vjp")}
+    forward, grad = g["forward"]["median"], g["grad"]["median"]
+    steps, vjps = p["steps"], p["steps"] * med["step_vjp"]
+    rest = (
+        ": the rest is diffrax recomputing steps from its checkpoints"
+        if forward + vjps < grad
+        else " (alone, a step's VJP costs more than inside the solve)"
+    )
+    return [
+        "",
+        "### Where the gradient's time goes",
+        "",
+        "Per call in a compiled loop, 5-body chain [µs], timed in alternation with the "
+        f"gradient above; the step is `RKMK87`'s ({p['stages']} field evaluations) at the "
+        "forward solve's mean step.",
+        "",
+        "| unit | evaluation | VJP | VJP / evaluation |",
+        "|---|--:|--:|--:|",
+        f"| vector field | {fmt(p['field'], 1e6)} | {fmt(p['field_vjp'], 1e6)} "
+        f"| {med['field_vjp'] / med['field']:.1f} |",
+        f"| RKMK87 step | {fmt(p['step'], 1e6)} | {fmt(p['step_vjp'], 1e6)} "
+        f"| {med['step_vjp'] / med['step']:.1f} |",
+        "",
+        f"The forward solve takes {steps} steps (accepted and rejected): at the loop's cost "
+        f"per step {steps * med['step'] * 1e3:.1f} ms, against {forward * 1e3:.1f} ms "
+        f"measured. The forward solve and {steps} step VJPs ({vjps * 1e3:.0f} ms) account for "
+        f"{(forward + vjps) / grad:.0%} of the gradient's {grad * 1e3:.0f} ms{rest}. "
+        "A step's VJP evaluates each stage's "
+        "field twice before transposing it: in the step's forward pass, and again where the "
+        "stage is rematerialized (`jax.checkpoint`, cheaper than storing the field's "
+        "intermediates over the stages). A gradient within 4× of the forward solve would "
+        f"need the {steps} step VJPs within three forward solves, each within "
+        f"{3 * forward / (steps * med['step']):.1f}× the step; it costs "
+        f"{med['step_vjp'] / med['step']:.1f}×, most of it the field's VJP at "
+        f"{med['field_vjp'] / med['field']:.1f}× the field.",
+    ]
 
 
 def device_markdown(report):
