@@ -674,7 +674,7 @@ def gradient_cost(repeats, t1, rtol=1e-6):
 
     def loss(xi):
         state = bd.State(s.g, s.q, xi, s.qdot)
-        traj = bd.simulate(scene, state, t1, rtol=rtol, atol=rtol * 1e-2)
+        traj = bd.simulate(scene, state, t1, **simulate_options("RKMK87", "adaptive", rtol))
         return jnp.sum(traj.g[-1, :3, 3] ** 2) + jnp.sum(traj.q[-1] ** 2)
 
     units, profile = gradient_units(scene, s, t1, rtol)
@@ -704,7 +704,8 @@ def gradient_units(scene, state, t1, rtol):
     from bundledyn._simulate import initial_condition
 
     y = initial_condition(scene, state, 0.0)
-    steps = int(bd.simulate(scene, state, t1, rtol=rtol, atol=rtol * 1e-2).stats["num_steps"])
+    options = simulate_options("RKMK87", "adaptive", rtol)
+    steps = int(bd.simulate(scene, state, t1, **options).stats["num_steps"])
     term, solver = SceneTerm(scene), bd.RKMK87(dense_output=False)
 
     def field(i, y):
