@@ -2,7 +2,6 @@
 
 from collections.abc import Callable
 
-import diffrax
 import equinox as eqx
 import jax
 import jax.numpy as jnp
@@ -14,6 +13,7 @@ from ._effects import AbstractEffect, Kinematics
 from ._frames import AbstractFrame
 from ._geometry import connection
 from ._linalg import matmul
+from ._solver._state import AbstractBodyTerm, tangent_of_twist
 from ._systems._base import AbstractSystem
 
 
@@ -123,8 +123,20 @@ class Scene(eqx.Module):
 
         **Returns:**
 
-        `(gdot, xdot)` with $\\dot g = g\\hat\\xi$ (the embedding's derivative; Lie-group solvers
-        read $\\xi = (g^{-1}\\dot g)^\\vee$), and $\\dot x$ = $(\\dot q, \\dot U, \\ddot q)$ or $\\dot U$.
+        `(gdot, xdot)` with $\\dot g = g\\hat\\xi$ (the embedding's derivative) and $\\dot x$ =
+        $(\\dot q, \\dot U, \\ddot q)$ or $\\dot U$; `body_field` gives $\\xi$ instead of $\\dot g$.
+        """
+        xi, xdot = self.body_field(t, y, args)
+        return tangent_of_twist(y[0], xi), xdot
+
+    def body_field(self, t, y, args=None):
+        """The vector field of (2.6)–(2.7) left-trivialized: the pose's rate as its body twist.
+
+        **Returns:**
+
+        `(xi, xdot)`: the body twist $\\xi$ of the pose, $\\dot g = g\\hat\\xi$, shape `(6,)`, and
+        $\\dot x$ as in `vector_field`. The Lie-group solvers step in $\\xi$ (see
+        `AbstractBodyTerm`).
         """
         g, x = y
         q, U, qdot = self.split(t, x)
@@ -140,10 +152,9 @@ class Scene(eqx.Module):
         if self.frame is not None:
             xi = xi - shift
             Udot = Udot + lie.bracket(xi, shift) - shift_dot
-        gdot = matmul(g, lie.hat(xi))
         if self.free_shape:
-            return gdot, jnp.concatenate([qdot, Udot, shape_acceleration(geo, F, Q)])
-        return gdot, Udot
+            return xi, jnp.concatenate([qdot, Udot, shape_acceleration(geo, F, Q)])
+        return xi, Udot
 
     def kinematics(self, t, y) -> Kinematics:
         """The state at `y` as `Kinematics` in the Galilean frame (true pose and velocities)."""
@@ -157,18 +168,19 @@ class Scene(eqx.Module):
 
 
 @eqx.filter_jit
-def _vector_field(scene, t, y, args):
+def _body_field(scene, t, y, args):
     # A jitted call: diffrax traces a solver's step up to three times (shapes, loop body,
     # starting step), and JAX then reuses the field's jaxpr, and under `jax.grad` its
     # derivative, instead of tracing and differentiating the field each time.
-    return scene.vector_field(t, y, args)
+    return scene.body_field(t, y, args)
 
 
-class SceneTerm(diffrax.AbstractTerm):
+class SceneTerm(AbstractBodyTerm):
     """The diffrax term of a scene: its vector field, with the scene itself at hand.
 
-    Behaves as `diffrax.ODETerm(scene.vector_field)`; solvers that need more than the
-    vector field (the variational integrator needs the metric and the forces) read `scene`.
+    Behaves as `diffrax.ODETerm(scene.vector_field)`, and gives the Lie-group solvers the
+    field left-trivialized (`Scene.body_field`); solvers that need more than the vector
+    field (the variational integrator needs the metric and the forces) read `scene`.
 
     **Arguments:**
 
@@ -177,8 +189,8 @@ class SceneTerm(diffrax.AbstractTerm):
 
     scene: Scene
 
-    def vf(self, t, y, args):
-        return _vector_field(self.scene, t, y, args)
+    def body_vf(self, t, y, args):
+        return _body_field(self.scene, t, y, args)
 
     def contr(self, t0, t1, **kwargs):
         return t1 - t0

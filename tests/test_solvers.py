@@ -31,6 +31,7 @@ from bundledyn import lie
 from bundledyn._solver._interpolation import LieLocalInterpolation
 from bundledyn._solver._lie_euler import LieEuler
 from bundledyn._solver._rkmk import RKMK4, RKMK54, RKMK87
+from bundledyn._solver._state import AbstractBodyTerm
 from bundledyn._solver._tableau import (
     dopri5_tableau,
     dopri8_tableau,
@@ -47,7 +48,8 @@ MAX_STEPS = 2048
 ORTHO_TOL = 1e-13
 
 
-def vector_field(t, y, args):
+def body_vector_field(t, y, args):
+    """The field left-trivialized: `(xi, xdot)` with ġ = g ξ̂."""
     g, x = y
     k, c, d, amp = args
     R, p = g[:3, :3], g[:3, 3]
@@ -58,7 +60,12 @@ def vector_field(t, y, args):
     )
     wdot = jnp.cross(INERTIA * w, w) / INERTIA + k * jnp.cross(R[2, :], ez) - c * w
     vdot = jnp.cross(v, w) - d * p[2] * ez + amp * jnp.sin(t) * jnp.array([1.0, 0.0, 0.0])
-    return g @ lie.hat(xi), jnp.concatenate([wdot, vdot])
+    return xi, jnp.concatenate([wdot, vdot])
+
+
+def vector_field(t, y, args):
+    xi, xdot = body_vector_field(t, y, args)
+    return y[0] @ lie.hat(xi), xdot
 
 
 TERM = diffrax.ODETerm(vector_field)
@@ -646,6 +653,44 @@ def test_reverse_time():
     y0 = final(sol)
     assert orthogonality_error(at_steps(sol)[1][0]) <= ORTHO_TOL
     assert error(y0, Y0) < 1e-10
+
+
+class BodyTerm(AbstractBodyTerm):
+    """`TERM` with its twist given directly, as `SceneTerm` gives it. Its `vf` (which
+    diffrax evaluates for shapes only) is NaN, so a solve that read the twist off
+    $\\dot g$ instead would fail."""
+
+    def body_vf(self, t, y, args):
+        return body_vector_field(t, y, args)
+
+    def vf(self, t, y, args):
+        return jax.tree.map(lambda a: jnp.full_like(a, jnp.nan), vector_field(t, y, args))
+
+    def contr(self, t0, t1, **kwargs):
+        return t1 - t0
+
+    def prod(self, vf, control):
+        return jax.tree.map(lambda v: control * v, vf)
+
+
+@eqx.filter_jit
+def _fixed_steps(term, y0, args, t0, t1):
+    return diffrax.diffeqsolve(
+        term, RKMK54(), t0, t1, (t1 - t0) / 16, y0, args, saveat=diffrax.SaveAt(steps=True)
+    ).ys
+
+
+def test_body_term():
+    """A term that gives its twist (`AbstractBodyTerm`) is read directly, inside the wrapper
+    `diffeqsolve` puts around terms too, forwards and backwards in time (the coupled
+    problem depends on t): the same steps as reading $(g^{-1}\\dot g)^\\vee$ off `TERM`."""
+    args = _f64(PROBLEMS["coupled"])
+    for t0, t1 in ((0.0, T1), (T1, 0.0)):
+        ends = _f64((t0, t1))
+        embedded = _fixed_steps(TERM, _f64(Y0), args, *ends)
+        body = _fixed_steps(BodyTerm(), _f64(Y0), args, *ends)
+        for a, b in zip(jax.tree.leaves(embedded), jax.tree.leaves(body), strict=True):
+            np.testing.assert_allclose(a, b, rtol=0, atol=1e-13)
 
 
 # --------------------------------------------------------------------------- one step

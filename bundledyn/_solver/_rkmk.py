@@ -19,6 +19,7 @@ $$g_1 = g_0\exp\Big(\sum_i b_iK_i\Big)^\wedge,\quad x_1 = x_0 + \sum_i b_ik_i.$$
 With $\mathrm{dexp}^{-1}$ evaluated exactly (`bundledyn.lie.se3_dexp_inv`) an order-$p$
 tableau gives an order-$p$ method, and $g$ is only ever multiplied by exponentials, so
 $R$ stays orthogonal to rounding error whatever the step size or tolerance. The twist is
+taken from the term where it gives it (`AbstractBodyTerm`, as `SceneTerm` does), otherwise
 read off the field as $\xi_i = (g_i^{-1}\dot g_i)^\vee$; matrices are never added to $g$.
 """
 
@@ -33,7 +34,7 @@ from diffrax import RESULTS, AbstractAdaptiveSolver, AbstractSolver, AbstractTer
 
 from .. import lie
 from ._interpolation import LieLocalInterpolation
-from ._state import from_chart, matmul, split, twist_of_tangent
+from ._state import body_field, from_chart, matmul, split
 from ._tableau import LieButcherTableau, dopri5_tableau, dopri8_tableau, rk4_tableau
 
 __all__ = ["AbstractRKMK", "RKMK4", "RKMK54", "RKMK87"]
@@ -61,7 +62,8 @@ class AbstractRKMK(AbstractSolver):
     States are pytrees whose first leaf is a $4\times4$ SE(3) pose and whose other leaves
     are Euclidean, e.g. `y = (g, x)`; the term is an ordinary `diffrax.ODETerm` whose
     vector field returns $(\dot g, \dot x)$ with $\dot g = g\hat\xi$ (the field in the
-    embedding, which stock diffrax solvers can integrate too).
+    embedding, which stock diffrax solvers can integrate too), or an `AbstractBodyTerm`,
+    which gives $\xi$ directly (see `_state.body_field`).
 
     - If the tableau has an embedded pair, the step returns the error estimate
       `y_error` $= \big((\Omega - \hat\Omega)^\wedge,\ x_1 - \hat x_1\big)$: a Lie-algebra
@@ -119,10 +121,9 @@ class AbstractRKMK(AbstractSolver):
             omega = _combine(a[i], kappas)
             deltas = [_combine(a[i], k) for k in ks]
             yi = from_chart(g0, rest0, treedef, omega, deltas)
-            fi = terms.vf(t0 + c[i] * (t1 - t0), yi, args)
-            gi, _, _ = split(yi)
-            kg, *kx = jtu.tree_leaves(terms.prod(fi, control))
-            eta = twist_of_tangent(gi, kg).astype(omega.dtype)
+            fi = body_field(terms, t0 + c[i] * (t1 - t0), yi, args, control)
+            eta, *kx = jtu.tree_leaves(fi)
+            eta = eta.astype(omega.dtype)
             kappa = matmul(lie.se3_dexp_inv(omega), eta)
             kappas = kappas.at[..., i].set(kappa)
             ks = [k.at[..., i].set(kxi.astype(k.dtype)) for k, kxi in zip(ks, kx, strict=True)]

@@ -7,7 +7,7 @@ import jax.tree_util as jtu
 import optimistix as optx
 
 from .. import lie
-from ._state import from_chart, split, twist_of_tangent
+from ._state import body_field, from_chart, split
 
 __all__ = ["starting_step"]
 
@@ -22,7 +22,7 @@ def starting_step(term, t0, y0, args, *, error_order, rtol, atol):
     r"""Initial step size of an adaptive solve of `term` from `y0`, in the solvers' chart.
 
     The algorithm of Hairer, Nørsett & Wanner (Solving ODEs I, §II.4), with the pose's
-    rate read as its body twist $\xi = (g^{-1}\dot g)^\vee$ and the Euler step taken in the
+    rate read as its body twist $\xi$ (`_state.body_field`) and the Euler step taken in the
     chart $(g_0\exp\hat\Omega,\ x_0 + \delta)$ of `_state.py`, so that it stays on the
     group:
     $d_0 = \|y_0\|$, $d_1 = \|f_0\|$, $h_0 = 0.01\,d_0/d_1$,
@@ -42,7 +42,8 @@ def starting_step(term, t0, y0, args, *, error_order, rtol, atol):
 
     **Arguments:**
 
-    - `term`: the diffrax term (its `vf(t, y, args)` returns $(\dot g, \dot x)$).
+    - `term`: the diffrax term: its `vf(t, y, args)` returns $(\dot g, \dot x)$, or an
+      `AbstractBodyTerm`.
     - `t0`, `y0`, `args`: the start of the solve; `y0`'s first leaf is the pose.
     - `error_order`: the order $p$ of the solver's error estimate (`solver.error_order`).
     - `rtol`, `atol`: the step-size controller's tolerances.
@@ -59,11 +60,8 @@ def starting_step(term, t0, y0, args, *, error_order, rtol, atol):
     d0 = _scaled_rms([g0, *rest0], scales)
 
     def rates(t, y):
-        g, _, _ = split(y)
-        gdot, *xdot = jtu.tree_leaves(term.vf(t, y, args))
-        return twist_of_tangent(g, gdot), [
-            v.astype(x.dtype) for v, x in zip(xdot, rest0, strict=True)
-        ]
+        xi, *xdot = jtu.tree_leaves(body_field(term, t, y, args))
+        return xi, [v.astype(x.dtype) for v, x in zip(xdot, rest0, strict=True)]
 
     def norm(xi, xdot):
         return _scaled_rms([lie.hat(xi), *xdot], scales)
