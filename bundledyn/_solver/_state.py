@@ -79,7 +79,7 @@ class AbstractBodyTerm(diffrax.AbstractTerm):
     makes every stage form $g_i = g_0\exp\hat\Omega_i$, $g_i\hat\xi$ and $g_i^{-1}$ even for a
     field that never reads $g$, and reverse mode then sends cotangents through all three
     that cancel in the end. Read directly, an `RKMK87` step of the 5-body chain of
-    `benchmarks/speed.py` compiles to 95 fused kernels instead of 105 and its VJP to 401
+    `benchmarks/speed.py` compiles to 95 fusions instead of 105 and its VJP to 401
     instead of 446; both versions in one process, alternating over 15 rounds, `jax.grad` of
     that benchmark's 10 s rollout took 0.86× and the forward solve 0.91× the earlier time
     (medians of the per-round ratios). Subclasses give `body_vf`; `vf` is derived from it,
