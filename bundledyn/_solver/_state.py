@@ -9,7 +9,9 @@ Lie-group solver too.
 Around a base point $y_0 = (g_0, x_0)$ the solvers work in the chart
 $(\Omega, \delta) \mapsto (g_0\exp\hat\Omega,\ x_0 + \delta)$, $\Omega\in\mathbb R^6$. A
 "chart increment" is a pytree of the same structure as `y` whose first leaf is a twist
-(or a stack of twists) instead of a $4\times4$ matrix.
+(or a stack of twists) instead of a $4\times4$ matrix. The field comes in the same form,
+the pose's rate as its body twist (`body_field`): from an `AbstractBodyTerm` directly,
+from any other term read off $\dot g$.
 """
 
 import abc
