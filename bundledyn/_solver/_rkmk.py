@@ -121,10 +121,8 @@ class AbstractRKMK(AbstractSolver):
             omega = _combine(a[i], kappas)
             deltas = [_combine(a[i], k) for k in ks]
             yi = from_chart(g0, rest0, treedef, omega, deltas)
-            fi = body_field(terms, t0 + c[i] * (t1 - t0), yi, args, control)
-            eta, *kx = jtu.tree_leaves(fi)
-            eta = eta.astype(omega.dtype)
-            kappa = matmul(lie.se3_dexp_inv(omega), eta)
+            eta, *kx = jtu.tree_leaves(body_field(terms, t0 + c[i] * (t1 - t0), yi, args, control))
+            kappa = matmul(lie.se3_dexp_inv(omega), eta.astype(omega.dtype))
             kappas = kappas.at[..., i].set(kappa)
             ks = [k.at[..., i].set(kxi.astype(k.dtype)) for k, kxi in zip(ks, kx, strict=True)]
             return (kappas, ks), None
