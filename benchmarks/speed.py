@@ -695,8 +695,9 @@ def gradient_cost(repeats, t1, rtol=1e-6):
 
 def gradient_units(scene, state, t1, rtol):
     """Part 5c: samplers of where the gradient's time goes, per call in compiled loops
-    (`loop_sampler`): the vector field, one `RKMK87` step at the forward solve's mean
-    step, and their VJPs; with the solve's steps (accepted and rejected)."""
+    (`loop_sampler`): the body field the RKMK stages evaluate, one `RKMK87` step at the
+    forward solve's mean step, and their VJPs; with the solve's steps (accepted and
+    rejected)."""
     import jax
 
     import bundledyn as bd
@@ -709,7 +710,7 @@ def gradient_units(scene, state, t1, rtol):
     term, solver = SceneTerm(scene), bd.RKMK87(dense_output=False)
 
     def field(i, y):
-        return scene.vector_field(0.0, y, None)
+        return scene.body_field(0.0, y, None)
 
     def step(i, y):
         return solver.step(term, 0.0, t1 / steps, y, None, None, False)[0]
@@ -1073,7 +1074,7 @@ def gradient_profile_lines(report):
         "",
         "| unit | evaluation | VJP | VJP / evaluation |",
         "|---|--:|--:|--:|",
-        f"| vector field | {fmt(p['field'], 1e6)} | {fmt(p['field_vjp'], 1e6)} "
+        f"| body field (`Scene.body_field`) | {fmt(p['field'], 1e6)} | {fmt(p['field_vjp'], 1e6)} "
         f"| {med['field_vjp'] / med['field']:.1f} |",
         f"| RKMK87 step | {fmt(p['step'], 1e6)} | {fmt(p['step_vjp'], 1e6)} "
         f"| {med['step_vjp'] / med['step']:.1f} |",
