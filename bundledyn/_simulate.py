@@ -34,8 +34,30 @@ def initial_condition(scene: Scene, state: State, t0):
     return state.g, scene.join(q, U, qdot)
 
 
+@jax.custom_jvp
+def _polar_factor(A):
+    """The orthogonal polar factor $UV^T$ of $A = USV^T$ (batched over leading axes)."""
+    u, _, vt = jnp.linalg.svd(A)
+    return u @ vt
+
+
+@_polar_factor.defjvp
+def _polar_factor_jvp(primals, tangents):
+    # With M = U^T dA V, d(UV^T) = U W V^T, W_ij = (M_ij - M_ji) / (s_i + s_j): from A = PH,
+    # M = WS + V^T dH V with W skew and V^T dH V symmetric. Autodiff of the SVD divides by
+    # s_i^2 - s_j^2 instead, which is 0 at every rotation (all s = 1): NaN gradients.
+    (A,), (dA,) = primals, tangents
+    u, s, vt = jnp.linalg.svd(A)
+    M = jnp.swapaxes(u, -1, -2) @ dA @ jnp.swapaxes(vt, -1, -2)
+    W = (M - jnp.swapaxes(M, -1, -2)) / (s[..., :, None] + s[..., None, :])
+    return u @ vt, u @ W @ vt
+
+
 def project_to_se3(g):
     """The nearest pose: the rotation block replaced by its polar factor $UV^T$ (SVD).
+
+    Differentiable everywhere the block is invertible, rotations included, where the
+    singular values coincide (`jax.grad` of the SVD alone is NaN there).
 
     **Arguments:**
 
@@ -45,8 +67,12 @@ def project_to_se3(g):
 
     Poses in SE(3) with the same translation and bottom row `[0, 0, 0, 1]`.
     """
-    u, _, vt = jnp.linalg.svd(g[..., :3, :3])
-    return g.at[..., :3, :3].set(u @ vt).at[..., 3, :].set(jnp.array([0.0, 0.0, 0.0, 1.0]))
+    return (
+        g.at[..., :3, :3]
+        .set(_polar_factor(g[..., :3, :3]))
+        .at[..., 3, :]
+        .set(jnp.array([0.0, 0.0, 0.0, 1.0]))
+    )
 
 
 def _orthogonality_error(g):
