@@ -8,6 +8,7 @@ import jax
 import jax.numpy as jnp
 import jax.tree_util as jtu
 
+from . import lie
 from ._geometry import connection
 from ._precision import warn_if_tolerance_too_tight
 from ._scene import Prescribed, Scene, SceneTerm
@@ -43,14 +44,21 @@ def _polar_factor(A):
 
 @_polar_factor.defjvp
 def _polar_factor_jvp(primals, tangents):
-    # With M = U^T dA V, d(UV^T) = U W V^T, W_ij = (M_ij - M_ji) / (s_i + s_j): from A = PH,
-    # M = WS + V^T dH V with W skew and V^T dH V symmetric. Autodiff of the SVD divides by
-    # s_i^2 - s_j^2 instead, which is 0 at every rotation (all s = 1): NaN gradients.
+    # A = PH with H symmetric positive definite, so P^T dA = Ω H + dH with Ω = P^T dP skew,
+    # and P^T dA - dA^T P = ΩH + HΩ = hat((tr H - H) ω) for Ω = hat(ω). tr H - H has the
+    # eigenvalues s_i + s_j > 0. Autodiff of the SVD divides by s_i^2 - s_j^2 instead, zero
+    # at every rotation; this rule calls no SVD derivative, so it differentiates again.
     (A,), (dA,) = primals, tangents
-    u, s, vt = jnp.linalg.svd(A)
-    M = jnp.swapaxes(u, -1, -2) @ dA @ jnp.swapaxes(vt, -1, -2)
-    W = (M - jnp.swapaxes(M, -1, -2)) / (s[..., :, None] + s[..., None, :])
-    return u @ vt, u @ W @ vt
+    P = _polar_factor(A)
+    Pt = jnp.swapaxes(P, -1, -2)
+    H = Pt @ A
+    K = Pt @ dA
+    trace = jnp.trace(H, axis1=-2, axis2=-1)[..., None, None]
+    omega = jnp.linalg.solve(
+        trace * jnp.eye(3, dtype=H.dtype) - (H + jnp.swapaxes(H, -1, -2)) / 2,
+        lie.so3_vee(K - jnp.swapaxes(K, -1, -2))[..., None],
+    )
+    return P, P @ lie.so3_hat(omega[..., 0])
 
 
 def project_to_se3(g):

@@ -350,7 +350,8 @@ def test_project_to_se3_derivatives_at_rotations(key, kind):
     """The polar factor's derivative is finite and right at every rotation, where all three
     singular values coincide (autodiff of the SVD divides by their differences: NaN):
     forward mode against central differences, reverse mode its transpose, and at a rotation
-    $P$ the closed form $P\\,\\mathrm{skew}(P^T dA) = (dA - P\\,dA^T P)/2$."""
+    $P$ the closed form $P\\,\\mathrm{skew}(P^T dA) = (dA - P\\,dA^T P)/2$; second
+    derivatives (the gradient's JVP) against central differences of the gradient."""
     R = lie.se3_exp(jnp.array([0.4, -1.1, 0.7, 0.0, 0.0, 0.0]))[:3, :3]
     noise, dA, W = jax.random.normal(key, (3, 3, 3))
     A = {
@@ -366,8 +367,10 @@ def test_project_to_se3_derivatives_at_rotations(key, kind):
     np.testing.assert_allclose(
         tangent, (polar(A + h * dA) - polar(A - h * dA)) / (2 * h), atol=1e-8
     )
-    grad = jax.grad(lambda A: jnp.sum(W * polar(A)))(A)
-    np.testing.assert_allclose(jnp.sum(grad * dA), jnp.sum(W * tangent), rtol=1e-12)
+    grad = jax.jit(jax.grad(lambda A: jnp.sum(W * polar(A))))
+    np.testing.assert_allclose(jnp.sum(grad(A) * dA), jnp.sum(W * tangent), rtol=1e-12)
+    _, second = jax.jvp(grad, (A,), (dA,))  # the JVP rule is differentiated in turn
+    np.testing.assert_allclose(second, (grad(A + h * dA) - grad(A - h * dA)) / (2 * h), atol=1e-7)
     if kind != "general":
         np.testing.assert_allclose(tangent, (dA - P @ dA.T @ P) / 2, atol=1e-7)
     translation = jax.jacrev(lambda t: bd.project_to_se3(g.at[:3, 3].set(t))[:3, 3])(g[:3, 3])
