@@ -1,5 +1,6 @@
 """Dynamic invariance checks: boosted frames (Theorem 2.2) and falling frames (Theorem 3.4)."""
 
+import diffrax
 import equinox as eqx
 import jax
 import jax.numpy as jnp
@@ -126,3 +127,21 @@ def test_gravity_disappears_in_a_falling_frame_unless_the_centres_or_masses_diff
     assert result.shape[1] > 1e-2 and result.pose[1] > 1e-2
     assert result.shape[2] <= 1e-9
     np.testing.assert_allclose(result.pose[2], 0.01 * 9.81 * 2.0**2 / 2, rtol=1e-8)
+
+
+def test_gravity_discrepancy_is_differentiable_in_the_gravitational_mass():
+    """A body whose gravitational mass is m_g ≠ m drifts from the falling frame by
+    $(m_g/m - 1)\\,g t^2/2$, so the discrepancy's derivative in $m_g$ is $g t^2 / 2m$ (the
+    poses agree exactly at t0, where a norm's gradient would be NaN)."""
+    body = bd.RigidBody(2.0, jnp.zeros(3), jnp.diag(jnp.array([1.0, 2.0, 3.0])))
+    state = bd.State(jnp.eye(4), xi=jnp.array([0.0, 0.0, 0.0, 0.5, 0.0, 0.2]))
+    # Without rotation the motions are quadratic in t, which RK4's fixed steps integrate exactly.
+    steps = dict(solver=bd.RKMK4(), dt0=0.25, stepsize_controller=diffrax.ConstantStepSize())
+
+    def pose(m_g):
+        gravity = bd.Gravity(9.81, jnp.array([0.0, 0.0, -1.0]), gravitational_mass=m_g)
+        return bd.checks.gravity_discrepancy(body, gravity, state, 1.0, **steps).pose
+
+    value, slope = jax.jit(jax.value_and_grad(pose))(2.02)
+    np.testing.assert_allclose(value, 0.01 * 9.81 / 2, rtol=1e-12)
+    np.testing.assert_allclose(slope, 9.81 / (2 * 2.0), rtol=1e-12)

@@ -48,7 +48,11 @@ def _discrepancy(reference: Scene, observed: Scene, states, frame: AbstractFrame
     )(scenes, states)
     M_inv = lie.se3_inv(jax.vmap(frame.motion)(ts))
     relative = lie.se3_inv(runs.g[0]) @ M_inv @ runs.g[1]
-    pose = jnp.max(jnp.linalg.norm(lie.se3_log(relative), axis=-1))
+    # The norm after the max: at t0 the two poses agree exactly, and the gradient of a norm
+    # at 0 is NaN even where `max` does not pick it. Double `where`: 0 when all agree.
+    squared = jnp.max(jnp.sum(lie.se3_log(relative) ** 2, axis=-1))
+    apart = squared > 0.0
+    pose = jnp.where(apart, jnp.sqrt(jnp.where(apart, squared, 1.0)), 0.0)
     shape = jnp.max(jnp.abs(runs.q[0] - runs.q[1]), initial=0.0)
     return Discrepancy(shape, pose)
 
