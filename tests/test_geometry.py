@@ -287,6 +287,33 @@ def test_geometry_under_jit_vmap_grad(fn, key):
     np.testing.assert_allclose(grad_mass, fd_mass, rtol=1e-6, atol=1e-7)
 
 
+def test_screw_derivatives_are_along_unit_screws(key):
+    """Derivatives in `Multibody.screw_axes` are those of the model whose screws stay unit:
+    the metric (kinematics and joint columns) along a random direction equals central
+    differences of the metric with the perturbed screws renormalized (rotation axes to
+    $|\\omega| = 1$, a translation's $\\omega$ to 0), and reverse mode is its transpose."""
+    system = chain(6)  # revolute, universal, spherical, revolute and prismatic joints
+    S = system.screw_axes
+    rotation = np.linalg.norm(np.asarray(S[:, :3]), axis=1, keepdims=True) > 0
+    assert rotation.any() and not rotation.all()
+
+    def unit(S):
+        w = S[:, :3]
+        w = jnp.where(rotation, w / jnp.linalg.norm(w, axis=1, keepdims=True), 0.0)
+        return jnp.concatenate([w, S[:, 3:]], axis=1)
+
+    q = random_shapes(system, key, 1)[0]
+    metric = jax.jit(lambda S: eqx.tree_at(lambda s: s.screw_axes, system, S).metric(q))
+    dS = jax.random.normal(jax.random.fold_in(key, 1), S.shape)
+    W = jax.random.normal(jax.random.fold_in(key, 2), (6 + q.shape[0],) * 2)
+    _, tangent = jax.jvp(metric, (S,), (dS,))
+    h = 1e-6
+    central = (metric(unit(S + h * dS)) - metric(unit(S - h * dS))) / (2 * h)
+    np.testing.assert_allclose(tangent, central, atol=1e-7 * float(jnp.abs(central).max()))
+    grad = jax.grad(lambda S: jnp.sum(W * metric(S)))(S)
+    np.testing.assert_allclose(jnp.sum(grad * dS), jnp.sum(W * tangent), rtol=1e-12)
+
+
 @pytest.mark.parametrize("name", SYSTEMS)
 def test_metric_derivative_equals_autodiff_of_the_metric(name, key):
     """`metric_and_derivative` and the contractions of `metric_jet` (closed forms for trees

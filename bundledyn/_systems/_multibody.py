@@ -145,6 +145,11 @@ class Multibody(AbstractSystem):
     with $\\hat J_a = [1 \\mid Z \\odot \\text{path}_a]$, $Z_j = \\operatorname{Ad}_{r_j} S_j$ the
     joint screws in the section frame (DESIGN §2), computed for all bodies at once.
 
+    The joint screws `screw_axes` are unit screws (a rotation axis $|\\omega| = 1$, a
+    translation $\\omega = 0$), and derivatives with respect to them are taken along unit
+    screws: the axis turns and the moment $v$ moves freely, but $|\\omega|$ stays 1 and a
+    translation's $\\omega$ stays 0, where the kinematics' Rodrigues formula holds.
+
     **Arguments:**
 
     - `base`: the floating base `RigidBody` (body 0).
@@ -233,7 +238,7 @@ class Multibody(AbstractSystem):
         screw_nodes = np.flatnonzero(kinds == "screw")
         ball_nodes = np.flatnonzero(kinds == "ball")
         theta = take(q, q_start[screw_nodes])
-        F_screw = _unit_screw_exp(self.screw_axes, theta)
+        F_screw = _unit_screw_exp(_unit_screws(self.screw_axes), theta)
         phi = take(q, q_start[ball_nodes][:, None] + np.arange(3))
         R = lie.so3_exp(phi)
         a = self.ball_anchors
@@ -290,7 +295,7 @@ class Multibody(AbstractSystem):
 
     def _shape_columns(self, T, screw_nodes, ball_nodes, S_ball):
         """$Z$: every joint column as a twist in the base frame, shape (6, d)."""
-        Z_screw = einsum("kij,kj->ik", lie.Ad(take(T, screw_nodes)), self.screw_axes)
+        Z_screw = einsum("kij,kj->ik", lie.Ad(take(T, screw_nodes)), _unit_screws(self.screw_axes))
         Z_ball = einsum("kij,kjl->ikl", lie.Ad(take(T, ball_nodes)), S_ball).reshape(6, -1)
         q_start = np.array(self._tables.q_start)
         columns = np.concatenate(
@@ -510,6 +515,21 @@ class _TreeMetricJet(AbstractMetricJet):
             ZN = ZN - jnp.einsum("kxj,mj->mkx", self.ball_dZ, X[:, 6:])
         half = -jnp.einsum("ikx,jkx->ijk", ZN, Pi)
         return half + jnp.swapaxes(half, 0, 1)
+
+
+@jax.custom_jvp
+def _unit_screws(S):
+    """The joint screws, differentiated along unit screws only (`Multibody`'s docstring)."""
+    return S
+
+
+@_unit_screws.defjvp
+def _unit_screws_jvp(primals, tangents):
+    (S,), (dS,) = primals, tangents
+    w, dw = S[..., :3], dS[..., :3]
+    # |ω|² dω - ω (ω·dω): the tangent of |ω| = 1 at a rotation axis, zero at a translation's ω = 0.
+    dw = jnp.sum(w * w, axis=-1, keepdims=True) * dw - w * jnp.sum(w * dw, axis=-1, keepdims=True)
+    return S, jnp.concatenate([dw, dS[..., 3:]], axis=-1)
 
 
 def _unit_screw_exp(S, theta):
