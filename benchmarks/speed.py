@@ -709,8 +709,9 @@ def gradient_units(scene, state, t1, rtol):
     steps = int(bd.simulate(scene, state, t1, **options).stats["num_steps"])
     term, solver = SceneTerm(scene), bd.RKMK87(dense_output=False)
 
-    def field(i, y):
-        return scene.body_field(0.0, y, None)
+    def field(i, y):  # the twist as a 4×4 matrix, so that the loop can feed it back as y
+        xi, xdot = scene.body_field(0.0, y, None)
+        return bd.lie.se3_hat(xi), xdot
 
     def step(i, y):
         return solver.step(term, 0.0, t1 / steps, y, None, None, False)[0]

@@ -58,3 +58,14 @@ def test_speed_times_both_sides_in_alternation():
     (first_a, runs_a), (_, runs_b) = timings["a"], timings["b"]
     assert first_a == 2.0 and runs_a == {"median": 2.0, "min": 2.0, "max": 2.0}
     assert 0.0 <= runs_b["min"] <= runs_b["median"] <= runs_b["max"] < 1.0
+
+
+def test_speed_gradient_profile_units_run():
+    """Part 5c's units (the body field, an RKMK87 step and their VJPs) run in their compiled
+    loops: each returns a time per call."""
+    from benchmarks import speed
+
+    scene = speed.chain_scene(2)
+    units, profile = speed.gradient_units(scene, speed.initial_state(scene), 0.5, 1e-4)
+    assert profile["steps"] >= 1 and profile["stages"] == 13
+    assert all(0.0 < sample() < 1.0 for sample in units.values())
