@@ -75,6 +75,16 @@ def stretch_derivatives(q: Float[Array, " 6"]):
     the third derivatives in the same form (`_stretch_third_derivatives`); the eigenvectors,
     undefined where eigenvalues repeat (at $q = 0$ all three do), are never differentiated.
 
+    One exception, JAX's (0.10): when reverse mode linearizes a `lax.scan`, JAX hoists loop
+    invariants by partially evaluating the primal loop body with the carry unknown, and
+    that inlines every custom-JVP function whose inputs depend on the carry, rule dropped.
+    Differentiating that primal loop again (`jax.hessian`, or `jax.grad` of a gradient)
+    then differentiates this function's eigenvectors: through the Lie-group solvers'
+    stage loop such second derivatives are NaN where eigenvalues repeat and lose digits
+    near it (1e-10 relative at $|q| = 10^{-9}$). Forward-first ones
+    (`jax.jacfwd(jax.jacfwd(f))`, `jax.jacrev(jax.jacfwd(f))`) keep this rule and are
+    finite and correct there.
+
     **Arguments:**
 
     - `q`: shape coordinates, `(6,)`.
