@@ -16,7 +16,8 @@ and no forces, written once as MJCF (`chain_mjcf`) and loaded by both MuJoCo and
 3. **Batches**: `jax.vmap` of 1 s rollouts over 1024 initial states, each method at the
    loosest tolerance (1, 2, 5 per decade) or longest step whose largest error over 16
    rollouts of the batch is at most MuJoCo RK4's with dt = 1e-2 on them, against
-   `mujoco.rollout` on 2 threads (and MJX when `mujoco.mjx` is installed).
+   `mujoco.rollout` on 2 threads and, when `mujoco.mjx` is installed, MJX: timed at
+   dt = 1e-2 and compared at the step where its error on those rollouts is MuJoCo's.
 4. **Compile times** of `simulate` (n = 5, 20) and of its `jax.grad` (n = 20).
 5. **Gradients**: `jax.grad` of a loss on the 10 s rollout over the forward solve, timed in
    alternation with a profile of where its time goes (the field, a step and their VJPs);
@@ -45,6 +46,7 @@ host's CPU to show that the device computes the same trajectories.
 import argparse
 import datetime
 import json
+import math
 import os
 import pathlib
 import platform
@@ -71,6 +73,8 @@ METHODS = {
     "RKMK54": ("RKMK54", "adaptive"),
     "RKMK87, fixed step": ("RKMK87", "fixed"),
 }
+# Parts 1, 3 and 4 run under each: the key of `report["settings"]` -> its label.
+XLA_SETTINGS = {"bundledyn": "CPU_XLA_FLAGS", "xla_defaults": "XLA defaults"}
 
 
 # ------------------------------------------------------------------------------- models
@@ -262,19 +266,27 @@ def mujoco_final_state(n, dt, t1, scene, state):
     return final, sample
 
 
-def mujoco_batch(n, batch, t1, dt, threads=2):
-    """`(sampler, info)` of `mujoco.rollout` over `batch` states on `threads` threads."""
-    import mujoco
+def mujoco_batch_initials(model, n, batch):
+    """MuJoCo's full physics states of part 3's batch: the n-body chain's initial state with
+    noise of 0.05 on the base velocity, `(batch, state size)`."""
     import numpy as np
-    from mujoco import rollout
 
     scene = chain_scene(n)
-    model = mujoco_model(n, dt)
     _, initial = mujoco_initial(model, scene, initial_state(scene))
     rng = np.random.default_rng(0)
     initials = np.repeat(initial[None], batch, axis=0)
     vel = slice(1 + model.nq, 1 + model.nq + 6)
     initials[:, vel] += 0.05 * rng.standard_normal((batch, 6))
+    return initials
+
+
+def mujoco_batch(n, batch, t1, dt, threads=2):
+    """`(sampler, info)` of `mujoco.rollout` over `batch` states on `threads` threads."""
+    import mujoco
+    from mujoco import rollout
+
+    model = mujoco_model(n, dt)
+    initials = mujoco_batch_initials(model, n, batch)
     datas = [mujoco.MjData(model) for _ in range(threads)]
     nstep = round(t1 / dt)
 
@@ -284,33 +296,75 @@ def mujoco_batch(n, batch, t1, dt, threads=2):
     return sample, {"threads": threads, "steps": nstep}
 
 
-def mjx_batch(n, batch, t1, dt, repeats):
-    """MJX (MuJoCo in JAX) on the same batch, if `mujoco.mjx` is installed; else None."""
+def mjx_rollout(model):
+    """MJX (MuJoCo in JAX) from MuJoCo's `model`: a jitted `jax.vmap` of `nstep` steps of
+    `dt` from batches of `(qpos, qvel)` to the final `(qpos, qvel)`, `run(qpos, qvel, dt,
+    nstep)` (one compile for every step); None without `mujoco.mjx`."""
     try:
         from mujoco import mjx
     except ImportError:
         return None
     import jax
-    import jax.numpy as jnp
 
-    model = mjx.put_model(mujoco_model(n, dt))
-    nstep = round(t1 / dt)
+    mjx_model = mjx.put_model(model)
 
     @jax.jit
-    def run(qvel):
-        def one(v):
-            data = mjx.make_data(model).replace(qvel=v)
-            return jax.lax.fori_loop(0, nstep, lambda _, d: mjx.step(model, d), data).qpos
+    def run(qpos, qvel, dt, nstep):
+        m = mjx_model.tree_replace({"opt.timestep": dt})
 
-        return jax.vmap(one)(qvel)
+        def one(qpos, qvel):
+            data = mjx.make_data(m).replace(qpos=qpos, qvel=qvel)
+            data = jax.lax.fori_loop(0, nstep, lambda _, d: mjx.step(m, d), data)
+            return data.qpos, data.qvel
 
-    qvel = 0.05 * jax.random.normal(jax.random.key(0), (batch, model.nv))
-    _, compiled, runs = timed(run, jnp.asarray(qvel), repeats=repeats)
-    return {
-        "time": runs,
-        "compile": compiled,
-        "instance_steps_per_second": batch * nstep / runs["median"],
-    }
+        return jax.vmap(one)(qpos, qvel)
+
+    return run
+
+
+def mjx_batch(n, batch, t1, dt):
+    """`(sampler, info)` of MJX on the batch of `mujoco_batch` (its initial states, RK4 and
+    dt), or None without `mujoco.mjx`; `info["first_call"]` is the first call's seconds."""
+    import jax.numpy as jnp
+
+    model = mujoco_model(n, dt)
+    run = mjx_rollout(model)
+    if run is None:
+        return None
+    initials = mujoco_batch_initials(model, n, batch)
+    qpos = jnp.asarray(initials[:, 1 : 1 + model.nq])
+    qvel = jnp.asarray(initials[:, 1 + model.nq : 1 + model.nq + model.nv])
+    nstep = round(t1 / dt)
+    sample = blocking(run, qpos, qvel, dt, nstep)
+    start = time.perf_counter()
+    sample()
+    return sample, {"steps": nstep, "first_call": time.perf_counter() - start}
+
+
+def mjx_calibration(t1, scene, states, refs, target, divisions=(1, 2, 5, 10, 20, 50, 100)):
+    """MJX's RK4 on part 3's calibration rollouts, at MuJoCo's step divided by each of
+    `divisions`: the largest final-state error over the rollouts (against `refs`) at each
+    step, and the longest step whose error is at most `target`; None without `mujoco.mjx`."""
+    import numpy as np
+
+    from bundledyn._systems._mujoco import state_from_mujoco
+
+    model = mujoco_model(5, MUJOCO_DT)
+    run = mjx_rollout(model)
+    if run is None:
+        return None
+    datas = [mujoco_initial(model, scene, state)[0] for state in states]
+    qpos0, qvel0 = np.stack([d.qpos for d in datas]), np.stack([d.qvel for d in datas])
+    points = []
+    for k in divisions:
+        qpos, qvel = run(qpos0, qvel0, MUJOCO_DT / k, round(k * t1 / MUJOCO_DT))
+        error = max(
+            state_error(state_from_mujoco(scene.system, p, v, qpos0=model.qpos0), r)
+            for p, v, r in zip(qpos, qvel, refs, strict=True)
+        )
+        points.append({"dt": MUJOCO_DT / k, "steps": round(k * t1 / MUJOCO_DT), "error": error})
+    matched = next((p for p in points if p["error"] <= target), None)
+    return {"points": points, "at_target": matched}
 
 
 # ------------------------------------------------------------------------------- bundledyn
@@ -507,13 +561,15 @@ def batch_calibration(t1, quick, members=16):
         return max(state_error(final_of(st), ref) for st, ref in zip(states, refs, strict=True))
 
     mujoco = largest_error(lambda st: mujoco_final_state(5, MUJOCO_DT, t1, scene, st)[0])
+    # MJX's RK4 on the same rollouts, at MuJoCo's step and a tenth of it (its order).
+    mjx = mjx_calibration(t1, scene, states, refs, mujoco)
     steps = range(2, 6) if quick else range(3, 16)
     # Tolerances at 1, 2 and 5 per decade: RKMK87's steps go as rtol^(-1/8), so 2-2.5x in
     # rtol is ~10 % in steps, as fine as the fixed steps' grid. With whole decades it ran
     # 3.3x more accurate than MuJoCo on the batch (rtol 1e-7), and its time with it.
     rtols = [float(f"{m}e-{k}") for k in range(5, 11) for m in (10, 5, 2)]
     sweeps = {"adaptive": rtols, "fixed": [t1 / n for n in steps]}
-    out = {"members": members, "mujoco_error": mujoco, "methods": {}}
+    out = {"members": members, "mujoco_error": mujoco, "mjx": mjx, "methods": {}}
     for method, (solver, control) in METHODS.items():
         run = rollout_fn(scene, t1, solver, control)
         points = [
@@ -569,11 +625,17 @@ def device_agreement(batch_settings, t1, batch=64):
     return out
 
 
-def batch_throughput(batch_settings, t1, repeats, batch=BATCH, threads=(2,), split=(1,)):
+def batch_throughput(
+    batch_settings, t1, repeats, batch=BATCH, threads=(2,), split=(1,), with_mjx=False
+):
     """Part 3: each method's batch at its setting, split over each number of Python
-    threads in `split` (`batch_sampler`), and `mujoco.rollout`'s on each number of
-    `threads`, timed in alternation: `(bundledyn's by name, [MuJoCo's by threads])`."""
+    threads in `split` (`batch_sampler`), `mujoco.rollout`'s on each number of `threads`
+    and, `with_mjx`, MJX's, timed in alternation: `(bundledyn's by name, [MuJoCo's by
+    threads], MJX's or None)`."""
     samplers, settings, first, mujoco = {}, {}, {}, {}
+    mjx = mjx_batch(5, batch, t1, MUJOCO_DT) if with_mjx else None
+    if mjx is not None:
+        samplers["MJX"], mjx = mjx
     for method, setting in batch_settings.items():
         for k in split:
             name = method if k == 1 else f"{method}, {k} threads"
@@ -589,6 +651,14 @@ def batch_throughput(batch_settings, t1, repeats, batch=BATCH, threads=(2,), spl
             "instance_steps_per_second": batch * info["steps"] / runs["median"],
             "rollouts_per_second": batch / runs["median"],
         }
+    if mjx is not None:
+        _, runs = timings.pop("MJX")
+        mjx |= {
+            "time": runs,
+            "compile": max(mjx.pop("first_call") - runs["median"], 0.0),
+            "instance_steps_per_second": batch * mjx["steps"] / runs["median"],
+            "rollouts_per_second": batch / runs["median"],
+        }
     batches = {
         name: settings[name]
         | {
@@ -598,7 +668,7 @@ def batch_throughput(batch_settings, t1, repeats, batch=BATCH, threads=(2,), spl
         }
         for name, (_, runs) in timings.items()
     }
-    return batches, list(mujoco.values())
+    return batches, list(mujoco.values()), mjx
 
 
 def device_batches(sizes, batch_settings, t1, repeats):
@@ -614,7 +684,7 @@ def device_batches(sizes, batch_settings, t1, repeats):
     rows = []
     for i, batch in enumerate(sizes):
         threads = tuple(dict.fromkeys((2, cores))) if i == 0 else ()
-        bundledyn, mujoco = batch_throughput(batch_settings, t1, repeats, batch, threads)
+        bundledyn, mujoco, _ = batch_throughput(batch_settings, t1, repeats, batch, threads)
         rows.append({"batch": batch, "bundledyn": bundledyn, "mujoco": mujoco})
         print(f"  batch {batch}: {bundledyn}", file=sys.stderr, flush=True)
     device = jax.devices()[0]
@@ -787,8 +857,8 @@ def worker(ns, repeats, batch_settings, batch_t1):
             file=sys.stderr,
             flush=True,
         )
-    out["batch"], (out["mujoco_batch"],) = batch_throughput(
-        batch_settings, batch_t1, repeats, split=(1, 2)
+    out["batch"], (out["mujoco_batch"],), out["mjx_batch"] = batch_throughput(
+        batch_settings, batch_t1, repeats, split=(1, 2), with_mjx=True
     )
     out["compile"] = compile_costs(tuple(dict.fromkeys((5, ns[-1]))))
     return out
@@ -805,7 +875,8 @@ def environment():
     import importlib.metadata as md
 
     versions = {}
-    for package in ("bundledyn", "jax", "jaxlib", "diffrax", "equinox", "numpy", "mujoco"):
+    packages = ("bundledyn", "jax", "jaxlib", "diffrax", "equinox", "numpy", "mujoco", "mujoco-mjx")
+    for package in packages:
         try:
             versions[package] = md.version(package)
         except md.PackageNotFoundError:
@@ -857,7 +928,7 @@ def targets(report):
         t_bd = time_at_error(chain[method], TARGET_ERROR)
         if t_bd is not None and t_mj is not None:
             rows.append((f"10 s chain at error 1e-10: {label} / MuJoCo RK4 time", t_bd / t_mj, 0.5))
-    mjb = ours["mujoco_batch"]
+    mjb, mjx = ours["mujoco_batch"], fastest_mjx(report)
     for method, batch in ours["batch"].items():
         rows.append(
             (
@@ -866,14 +937,12 @@ def targets(report):
                 1.0,
             )
         )
-        if report.get("mjx_batch"):
+        if mjx is not None:
             rows.append(
                 (
-                    f"batch: MJX / bundledyn ({method}) rollouts per s (× 10)",
-                    10
-                    * report["mjx_batch"]["instance_steps_per_second"]
-                    / mjb["steps"]
-                    / batch["rollouts_per_second"],
+                    f"batch {BATCH} at equal accuracy: 10 × MJX ({mjx['label']}, dt = "
+                    f"{mjx['dt']:.1e}) / bundledyn vmap ({method}) rollouts per s",
+                    10 * mjx["rollouts_per_second"] / batch["rollouts_per_second"],
                     1.0,
                 )
             )
@@ -896,6 +965,28 @@ def targets(report):
     return [(what, value, limit, value <= limit) for what, value, limit in rows]
 
 
+def fastest_mjx(report):
+    """MJX's batch at equal accuracy under the XLA flags where it ran fastest: its
+    `rollouts_per_second` at the step `dt` of part 3's calibration, from the instance-steps
+    per second measured at dt = 1e-2 (no contacts: a step's work does not depend on dt),
+    and the flags' `label`. None where MJX was not measured or no step reached the error."""
+    mjx = report["batch_calibration"].get("mjx")
+    if not mjx or not mjx["at_target"]:
+        return None
+    steps = mjx["at_target"]["steps"]
+    runs = [
+        {
+            "label": label,
+            "dt": mjx["at_target"]["dt"],
+            "rollouts_per_second": report["settings"][key]["mjx_batch"]["instance_steps_per_second"]
+            / steps,
+        }
+        for key, label in XLA_SETTINGS.items()
+        if report["settings"][key].get("mjx_batch")
+    ]
+    return max(runs, key=lambda m: m["rollouts_per_second"], default=None)
+
+
 def fmt(stats, scale, digits=3):
     return f"{stats['median'] * scale:.{digits}g} ({stats['min'] * scale:.{digits}g}–{stats['max'] * scale:.{digits}g})"
 
@@ -909,6 +1000,37 @@ def measured(report, where):
         + f"), Python {env['python']}; "
         + ", ".join(f"{k} {v}" for k, v in env["versions"].items() if v)
         + f". {report['repeats']} repeats; times are median (min–max)."
+    )
+
+
+def mjx_sentence(report):
+    """Part 3's note on MJX: what ran, its errors over the step, the step at equal accuracy."""
+    cal = report["batch_calibration"]
+    mjx = cal.get("mjx")
+    if not mjx:
+        return (
+            "MJX was not measured: `mujoco.mjx` is not installed here (`pip install "
+            "mujoco-mjx`, in the `bench` extra)."
+        )
+    coarse, fine = mjx["points"][0], mjx["points"][-1]
+    order = math.log(coarse["error"] / fine["error"]) / math.log(coarse["dt"] / fine["dt"])
+    matched = mjx["at_target"]
+    version = report["environment"]["versions"].get("mujoco-mjx")
+    text = (
+        f"MJX (`mujoco-mjx` {version}): `jax.vmap` of `mjx.step` (RK4) over the same {BATCH} "
+        "initial states as MuJoCo's, timed at dt = 1e-2 in alternation with bundledyn in each "
+        f"worker. Its largest error over the {cal['members']} calibration rollouts: "
+        + ", ".join(f"{p['error']:.2g} at dt = {p['dt']:.1e}" for p in mjx["points"])
+        + f" (order {order:.1f}; MuJoCo's C RK4 {cal['mujoco_error']:.2g} at dt = 1e-2)."
+    )
+    if matched is None:
+        return text + " No step tried reached MuJoCo's error, so there is no target row."
+    return text + (
+        f" At equal accuracy MJX takes dt = {matched['dt']:.1e}, {matched['steps']} steps per "
+        "rollout: the target divides its instance-steps per second at dt = 1e-2 (no contacts, "
+        "so a step's work does not depend on dt) by that, under the XLA flags where MJX ran "
+        "faster. At dt = 1e-2 (less accurate than bundledyn's batch) its rollouts per second "
+        "are in the table."
     )
 
 
@@ -1000,7 +1122,7 @@ def markdown(report):
         "| simulator | time per batch [s] | rollouts/s | instance-steps/s |",
         "|---|--:|--:|--:|",
     ]
-    for key, label in (("bundledyn", "CPU_XLA_FLAGS"), ("xla_defaults", "XLA defaults")):
+    for key, label in XLA_SETTINGS.items():
         for method, b in settings[key]["batch"].items():
             setting = setting_label(b["method"], b["setting"])
             cells = batch_cells(b, b["method"])
@@ -1010,18 +1132,14 @@ def markdown(report):
             f"| MuJoCo rollout, beside {label} | {fmt(m['time'], 1)} "
             f"| {m['rollouts_per_second']:.3g} | {m['instance_steps_per_second']:.3g} |"
         )
-    mjx = report.get("mjx_batch")
-    if mjx:
-        lines.append(
-            f"| MJX | {fmt(mjx['time'], 1)} | {mjx['instance_steps_per_second'] / mjb['steps']:.3g} "
-            f"| {mjx['instance_steps_per_second']:.3g} |"
-        )
-    else:
-        lines += [
-            "",
-            "MJX was not measured: `mujoco.mjx` is not installed here (`mujoco-mjx` has "
-            "no release for this MuJoCo version).",
-        ]
+        m = settings[key].get("mjx_batch")
+        if m:
+            lines.append(
+                f"| MJX, dt = 1e-2, beside {label} (compile {m['compile']:.0f} s) "
+                f"| {fmt(m['time'], 1)} "
+                f"| {m['rollouts_per_second']:.3g} | {m['instance_steps_per_second']:.3g} |"
+            )
+    lines += ["", mjx_sentence(report)]
     lines += [
         "",
         "## 4. Compile times [s] (tracing and lowering + XLA)",
@@ -1231,7 +1349,6 @@ def main(argv=None):
     }
     print("part 1: MuJoCo", flush=True)
     report["mujoco_field"] = {str(n): mujoco_rk4_step(n, repeats) for n in ns}
-    report["mjx_batch"] = mjx_batch(5, BATCH, batch_t1, MUJOCO_DT, repeats)
     print("part 5: gradients", flush=True)
     report["gradient"] = gradient_cost(repeats, report["chain"]["t1"])
     steps = 1000 if args.quick else MEMORY_STEPS
