@@ -676,7 +676,8 @@ def device_batches(sizes, batch_settings, t1, repeats):
 
     MuJoCo runs on this machine's CPU beside the first size only, on 2 threads and on all
     cores: `mujoco.rollout`'s throughput does not grow with the batch once its threads are
-    busy, and the larger batches would take minutes per repeat on 2 threads.
+    busy, and the larger batches would take minutes per repeat on 2 threads. MJX, where
+    installed, runs on the device beside every size.
     """
     import jax
 
@@ -684,8 +685,10 @@ def device_batches(sizes, batch_settings, t1, repeats):
     rows = []
     for i, batch in enumerate(sizes):
         threads = tuple(dict.fromkeys((2, cores))) if i == 0 else ()
-        bundledyn, mujoco, _ = batch_throughput(batch_settings, t1, repeats, batch, threads)
-        rows.append({"batch": batch, "bundledyn": bundledyn, "mujoco": mujoco})
+        bundledyn, mujoco, mjx = batch_throughput(
+            batch_settings, t1, repeats, batch, threads, with_mjx=True
+        )
+        rows.append({"batch": batch, "bundledyn": bundledyn, "mujoco": mujoco, "mjx": mjx})
         print(f"  batch {batch}: {bundledyn}", file=sys.stderr, flush=True)
     device = jax.devices()[0]
     return {
@@ -1254,7 +1257,29 @@ def device_markdown(report):
                 f"| {m['rollouts_per_second']:.3g} | {m['instance_steps_per_second']:.3g} | "
                 f"| {m['rollouts_per_second'] / baseline['rollouts_per_second']:.3g} |"
             )
+        m = row.get("mjx")
+        if m:
+            lines.append(
+                f"| {row['batch']} | MJX, dt = 1e-2 | {fmt(m['time'], 1)} "
+                f"| {m['rollouts_per_second']:.3g} | {m['instance_steps_per_second']:.3g} "
+                f"| {m['compile']:.1f} | {m['rollouts_per_second'] / baseline['rollouts_per_second']:.3g} |"
+            )
     lines.append("")
+    matched = report.get("mjx_at_equal_accuracy")
+    if matched and any(row.get("mjx") for row in rows):
+        steps = round(report["t1"] / matched["dt"])
+        lines += [
+            "MJX on the device at dt = 1e-2 is less accurate than the others; at equal accuracy "
+            f"it takes dt = {matched['dt']:.1e} (from the CPU run's calibration), {steps} steps "
+            f"per rollout, so its rollouts/s there are its instance-steps/s over {steps}: "
+            + ", ".join(
+                f"{r['mjx']['instance_steps_per_second'] / steps:.3g} at batch {r['batch']}"
+                for r in rows
+                if r.get("mjx")
+            )
+            + ".",
+            "",
+        ]
     for method, a in report["device_batches"]["agreement_with_cpu"].items():
         lines.append(
             f"- {method}: the first {a['batch']} rollouts, run again on the host's CPU, end "
@@ -1279,6 +1304,7 @@ def device_batch_main(args, repeats):
         "repeats": repeats,
         "t1": t1,
         "batch_setting": cpu["batch_setting"],
+        "mjx_at_equal_accuracy": (cpu["batch_calibration"].get("mjx") or {}).get("at_target"),
         "device_batches": device_batches(sizes, cpu["batch_setting"], t1, repeats),
     }
     text = device_markdown(report)
