@@ -13,11 +13,10 @@ with $\\delta\\xi = \\delta U - A\\,\\delta q$).
 from typing import NamedTuple
 
 import jax.numpy as jnp
-import jax.scipy.linalg as jsl
 from jaxtyping import Array, Float
 
 from . import lie
-from ._linalg import matmul, spd_inverse_6x6
+from ._linalg import matmul, spd_inverse_6x6, spd_solve
 from ._systems._base import AbstractSystem
 
 
@@ -213,8 +212,7 @@ def shape_acceleration(geo: BundleGeometry, wrench, shape_force) -> Float[Array,
     """
     Q = shape_force - matmul(geo.A.T, wrench)
     rhs = Q - levi_civita_term(geo) + kinetic_covariant_derivative(geo) - curvature_term(geo)
-    # J_def is symmetric positive definite: Cholesky, without LU's pivot loop.
-    return jsl.cho_solve(jsl.cho_factor(geo.J_def), rhs)
+    return spd_solve(geo.J_def, rhs)
 
 
 def reference_accelerations(system: AbstractSystem, q, xi, qdot, wrench, shape_force):
