@@ -6,7 +6,7 @@ and launching one (~0.3 µs) costs more than the arithmetic of a 6×6 product; a
 factorization of a 6×6 matrix costs microseconds (an LU solve against the identity
 ~2.5 µs, with a pivot loop; a Cholesky ~4 µs) and under `vmap` runs once per instance.
 Written as broadcast products and sums (`einsum`, `matmul`) and closed-form inverses
-(`inverse_3x3`, `spd_inverse_6x6`) and unrolled Cholesky solves (`spd_solve`, up to 8×8),
+(`inverse_3x3`, `spd_inverse_6x6`) and unrolled Cholesky solves (`spd_solve`, up to 6×6),
 the same work is elementwise, fuses into a few kernels and batches for free. Larger contractions (sums over many bodies) keep a real matrix
 kernel: fused, they made vmapped rollouts slower.
 """
@@ -223,16 +223,17 @@ def spd_inverse_6x6(M: Float[Array, "6 6"]) -> Float[Array, "6 6"]:
 
 
 # Largest SPD solve that `spd_solve` unrolls. Against LAPACK's Cholesky and solve (two custom
-# calls), in a compiled loop on XLA's CPU: d = 4, 0.07 against 1.1 µs (its VJP 0.5 against
-# 2.4 µs); d = 8, 0.47 against 0.77 µs; d = 9 about even. Past that the unrolled factor,
-# inlined into each of its uses, grows as d⁴.
-_UNROLLED_SOLVE_LIMIT = 8
+# calls), factorizing a new matrix in each pass of a compiled loop on XLA's CPU (medians):
+# d = 4, 0.54 against 1.77 µs (VJP 0.82 against 3.0); d = 6, 0.71 against 1.19 (VJP 1.1
+# against 2.0); d = 7 about even; d = 8, 2.4 against 1.6. The unrolled factor grows as d³
+# and is inlined into each of its uses.
+_UNROLLED_SOLVE_LIMIT = 6
 
 
 def spd_solve(M: Float[Array, "d d"], b: Float[Array, " d"]) -> Float[Array, " d"]:
     """Solve $Mx = b$ for a symmetric positive definite $M$ by Cholesky, $M = LL^T$.
 
-    Up to 8×8 the factorization and both triangular solves are unrolled into elementwise
+    Up to 6×6 the factorization and both triangular solves are unrolled into elementwise
     work that XLA fuses (and that batches for free under `vmap`, where LAPACK runs once per
     instance); larger systems use LAPACK (`jax.scipy.linalg.cho_solve`).
 
