@@ -253,6 +253,8 @@ def spd_solve(M: Float[Array, "d d"], b: Float[Array, " d"]) -> Float[Array, " d
 
 @jax.custom_jvp
 def _unrolled_spd_solve(M, b):
+    """`spd_solve` for small `d`: the Cholesky factor row by row, then $Ly = b$ and
+    $L^Tx = y$, every entry a scalar expression."""
     d = M.shape[-1]
     L = {}
     for j in range(d):
