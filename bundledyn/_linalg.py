@@ -7,8 +7,9 @@ factorization of a 6×6 matrix costs microseconds (an LU solve against the ident
 ~2.5 µs, with a pivot loop; a Cholesky ~4 µs) and under `vmap` runs once per instance.
 Written as broadcast products and sums (`einsum`, `matmul`) and closed-form inverses
 (`inverse_3x3`, `spd_inverse_6x6`) and unrolled Cholesky solves (`spd_solve`, up to 6×6),
-the same work is elementwise, fuses into a few kernels and batches for free. Larger contractions (sums over many bodies) keep a real matrix
-kernel: fused, they made vmapped rollouts slower.
+the same work is elementwise, fuses into a few kernels and batches for free. Larger
+contractions (sums over many bodies) keep a real matrix kernel: fused, they made vmapped
+rollouts slower.
 """
 
 import functools
