@@ -5,21 +5,28 @@ import warnings
 
 from jaxlib.version import __version_info__ as _JAXLIB_VERSION
 
-# Each flag with the last jaxlib `(major, minor)` whose XLA knows it (None: all so far).
-# XLA aborts the whole process on a flag it does not know (`Unknown flag in XLA_FLAGS`), so
-# a removed flag must not be passed: jaxlib 0.11 removed the switch back to the older CPU
-# emitters (0.11.2 aborts on it, seen 2026-11-22; 0.10.2 accepts it).
+# Each flag with the jaxlib releases whose XLA knows it, `[since, until)` as `(major, minor,
+# patch)` (None: no bound). XLA aborts the whole process on a flag it does not know
+# (`Unknown flag in XLA_FLAGS`), so a flag must be passed to those releases only: jaxlib 0.11
+# removed the switch back to the older CPU emitters (0.11.2 aborts on it, seen 2026-11-22;
+# 0.10.2 accepts it), and the YNNPACK switch first appears in 0.8.1 (the strings of the
+# wheels of 0.4.30 to 0.10.0 read on 2026-11-24: absent up to 0.8.0, present from 0.8.1).
 _FLAGS = {
-    "--xla_cpu_use_fusion_emitters=false": (0, 10),
-    "--xla_cpu_multi_thread_eigen=false": None,
-    "--xla_cpu_enable_concurrency_optimized_scheduler=false": None,
+    "--xla_cpu_use_fusion_emitters=false": (None, (0, 11, 0)),
+    "--xla_cpu_multi_thread_eigen=false": (None, None),
+    "--xla_cpu_enable_concurrency_optimized_scheduler=false": (None, None),
+    "--xla_cpu_experimental_ynn_fusion_type=": ((0, 8, 1), None),
 }
 
 
 def _cpu_xla_flags(jaxlib_version: tuple[int, ...]) -> tuple[str, ...]:
-    """bundledyn's XLA CPU flags that a jaxlib of this `(major, minor, …)` version knows."""
-    release = tuple(jaxlib_version[:2])
-    return tuple(flag for flag, last in _FLAGS.items() if last is None or release <= last)
+    """bundledyn's XLA CPU flags that a jaxlib of this `(major, minor, patch)` version knows."""
+    release = tuple(jaxlib_version[:3])
+    return tuple(
+        flag
+        for flag, (since, until) in _FLAGS.items()
+        if (since is None or release >= since) and (until is None or release < until)
+    )
 
 
 CPU_XLA_FLAGS = _cpu_xla_flags(_JAXLIB_VERSION)
@@ -40,9 +47,17 @@ def use_cpu_xla_flags() -> bool:
       38.7–69.5 µs without (three runs of five at 64–70); 1024 vmapped 5-body rollouts
       552–607 against 442–570 per second; compile times unchanged. (A shared machine's
       slow phases remain either way, pinned to one core too.)
+    - `--xla_cpu_experimental_ynn_fusion_type=` (empty: no YNNPACK fusions): XLA's default
+      hands every dot of a few dozen entries or more to a YNNPACK call, whose overhead
+      exceeds the work at these sizes. Four pairs of alternating processes on 2 cores
+      (jaxlib 0.10.2, 2026-11-24), minimum over the pairs: the 5-body field 6.7 against
+      8.8 µs, the 20-body field 20.5 against 23.1 µs, 10 s of the 5-body chain 5.6 against
+      7.0 ms and its `jax.grad` 49 against 59 ms; one body's field and 1024 vmapped
+      rollouts unchanged.
 
     The first flag is left out with jaxlib 0.11 and later, whose XLA no longer has it and
-    would abort on it; `CPU_XLA_FLAGS` holds the flags for the installed jaxlib.
+    would abort on it, and the last with jaxlib 0.8.0 and earlier, whose XLA does not have
+    it yet; `CPU_XLA_FLAGS` holds the flags for the installed jaxlib.
 
     Measured together against XLA's defaults (`benchmarks/results/speed.md`), across the
     runs of 2026-11-22: one vector field 1.2–2.7× faster (1 to 20 bodies), 1024 vmapped

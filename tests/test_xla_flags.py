@@ -36,22 +36,44 @@ def test_flags_are_added_before_the_backend_starts_and_user_flags_are_kept():
 
 
 @pytest.mark.parametrize(
-    "jaxlib, has_emitter_switch", [((0, 10, 2), True), ((0, 11, 0), False), ((0, 11, 2), False)]
+    "jaxlib, has_emitter_switch, has_ynn_switch",
+    [
+        ((0, 8, 0), True, False),
+        ((0, 8, 1), True, True),
+        ((0, 10, 2), True, True),
+        ((0, 11, 0), False, True),
+        ((0, 11, 2), False, True),
+    ],
 )
-def test_no_flag_that_the_installed_xla_would_abort_on(jaxlib, has_emitter_switch):
-    """jaxlib 0.11.2's XLA aborts the process on `--xla_cpu_use_fusion_emitters` (an
-    unknown flag there); 0.10.2's takes it. The other two flags are known to both."""
+def test_no_flag_that_the_installed_xla_would_abort_on(jaxlib, has_emitter_switch, has_ynn_switch):
+    """XLA aborts the process on a flag it does not know: jaxlib 0.11's on
+    `--xla_cpu_use_fusion_emitters`, 0.8.0's and older on the YNNPACK switch, which 0.8.1
+    introduced. The other two flags are known to all."""
     from bundledyn._xla_flags import _cpu_xla_flags
 
     flags = _cpu_xla_flags(jaxlib)
     assert ("--xla_cpu_use_fusion_emitters=false" in flags) is has_emitter_switch
-    assert len(flags) == 2 + has_emitter_switch
+    assert ("--xla_cpu_experimental_ynn_fusion_type=" in flags) is has_ynn_switch
+    assert len(flags) == 2 + has_emitter_switch + has_ynn_switch
 
 
 def test_after_the_backend_started_nothing_changes_and_it_warns(monkeypatch):
     """Called too late, the flags cannot act: the environment is left alone and it warns."""
+    # Started before the variable changes, so that the suite's own flags are the ones read.
+    jax.block_until_ready(jnp.ones(1))
     monkeypatch.setenv("XLA_FLAGS", "--xla_cpu_use_fusion_emitters=false")
-    jax.block_until_ready(jnp.ones(1))  # the backend has started
     with pytest.warns(UserWarning, match="after JAX started its backend"):
         assert bd.use_cpu_xla_flags() is False
     assert os.environ["XLA_FLAGS"] == "--xla_cpu_use_fusion_emitters=false"
+
+
+def test_small_products_skip_ynnpack_under_the_flags():
+    """The suite runs under the flags (`conftest.py`): a 4×6 by 6×36 float64 product, the
+    shape of the composite inertias of a 5-body chain, compiles to XLA's own dot, not to a
+    YNNPACK call (which XLA's default, `individual_dot`, makes of it)."""
+    if "--xla_cpu_experimental_ynn_fusion_type=" not in bd.CPU_XLA_FLAGS:
+        pytest.skip("this jaxlib has no YNNPACK switch")
+    a, b = jnp.ones((4, 6), jnp.float64), jnp.ones((6, 36), jnp.float64)
+    compiled = jax.jit(jnp.matmul).lower(a, b).compile().as_text()
+    assert "__ynn_fusion" not in compiled
+    assert " dot(" in compiled
