@@ -48,12 +48,14 @@ def use_cpu_xla_flags() -> bool:
       552–607 against 442–570 per second; compile times unchanged. (A shared machine's
       slow phases remain either way, pinned to one core too.)
     - `--xla_cpu_experimental_ynn_fusion_type=` (empty: no YNNPACK fusions): XLA's default
-      hands every dot of a few dozen entries or more to a YNNPACK call, whose overhead
-      exceeds the work at these sizes. Four pairs of alternating processes on 2 cores
-      (jaxlib 0.10.2, 2026-11-24), minimum over the pairs: the 5-body field 6.7 against
-      8.8 µs, the 20-body field 20.5 against 23.1 µs, 10 s of the 5-body chain 5.6 against
-      7.0 ms and its `jax.grad` 49 against 59 ms; one body's field and 1024 vmapped
-      rollouts unchanged.
+      (`individual_dot`) hands dots to YNNPACK calls (a 12×10 by 10×4 float64 product,
+      not a 6×6 one), whose overhead exceeds the work at these sizes. Each program compiled both ways in one process
+      (the option passed to `.compile()`) and the two alternated over 11–15 rounds on 2
+      cores (jaxlib 0.10.2, 2026-11-24), medians of the per-round time ratios: the 5-body
+      field 0.68–0.71× (6.6 against 9.1 µs at the minimum), its VJP 0.78×, an `RKMK87`
+      step 0.78× and its VJP 0.82×, the 20-body field 0.84×, 10 s of the 5-body chain
+      0.70× and its `jax.grad` 0.76×; one body's field and 1024 vmapped rollouts
+      unchanged (0.99× and 0.94×, within the noise).
 
     The first flag is left out with jaxlib 0.11 and later, whose XLA no longer has it and
     would abort on it, and the last with jaxlib 0.8.0 and earlier, whose XLA does not have
