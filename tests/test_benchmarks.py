@@ -69,3 +69,17 @@ def test_speed_gradient_profile_units_run():
     units, profile = speed.gradient_units(scene, speed.initial_state(scene), 0.5, 1e-4)
     assert profile["steps"] >= 1 and profile["stages"] == 13
     assert all(0.0 < sample() < 1.0 for sample in units.values())
+
+
+def test_speed_gradient_baseline_solves_its_linear_ode():
+    """Part 5a's baseline solves $\\dot y = Ky$ with $K$ skew: the flow is orthogonal, so the
+    loss $|y(t_1)|^2$ equals $|y_0|^2$ and its gradient is $2y_0$, to the solve's tolerance."""
+    import jax
+    import jax.numpy as jnp
+
+    from benchmarks import speed
+
+    loss, y0 = speed.linear_ode_loss(2.0, 1e-10)
+    assert y0.shape == (30,)
+    assert jnp.allclose(loss(y0), jnp.sum(y0**2), rtol=1e-8)
+    assert jnp.allclose(jax.grad(loss)(y0), 2 * y0, rtol=1e-7, atol=1e-8)
