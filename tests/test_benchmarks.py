@@ -71,15 +71,23 @@ def test_speed_gradient_profile_units_run():
     assert all(0.0 < sample() < 1.0 for sample in units.values())
 
 
-def test_speed_gradient_baseline_solves_its_linear_ode():
-    """Part 5a's baseline solves $\\dot y = Ky$ with $K$ skew: the flow is orthogonal, so the
-    loss $|y(t_1)|^2$ equals $|y_0|^2$ and its gradient is $2y_0$, to the solve's tolerance."""
+def test_speed_gradient_baselines_solve_their_odes():
+    """Part 5a's baselines solve what they say. Linear ($L = 1$, $K$ skew): the flow is
+    orthogonal, so the loss $|y(t_1)|^2$ is $|y_0|^2$ and its gradient $2y_0$, to the
+    solve's tolerance. Three layers: the loss's gradient matches central differences."""
     import jax
     import jax.numpy as jnp
 
     from benchmarks import speed
 
-    loss, y0 = speed.linear_ode_loss(2.0, 1e-10)
+    field, y0 = speed.skew_network_ode(1)
+    loss = speed.baseline_loss(field, 2.0, 1e-10)
     assert y0.shape == (30,)
     assert jnp.allclose(loss(y0), jnp.sum(y0**2), rtol=1e-8)
     assert jnp.allclose(jax.grad(loss)(y0), 2 * y0, rtol=1e-7, atol=1e-8)
+
+    field, y0 = speed.skew_network_ode(3)
+    loss = speed.baseline_loss(field, 1.0, 1e-11)
+    e = jnp.zeros(30).at[4].set(1e-5)
+    fd = (loss(y0 + e) - loss(y0 - e)) / 2e-5
+    assert jnp.allclose(jax.grad(loss)(y0)[4], fd, rtol=1e-8)
