@@ -22,7 +22,8 @@ and no forces, written once as MJCF (`chain_mjcf`) and loaded by both MuJoCo and
 5. **Gradients**: `jax.grad` of a loss on the 10 s rollout over the forward solve, timed in
    alternation with a profile of where its time goes (the field, a step and their VJPs)
    and with baselines, diffrax's `Dopri8` on fields of the same size whose VJP is cheap (a
-   linear one, and a network about as costly as the chain's field); peak memory of the gradient of a 10⁵-step rollout (RKMK4, fixed step, checkpointed).
+   linear one, and a network about as costly as the chain's field); peak memory of the
+   gradient of a 10⁵-step rollout (RKMK4, fixed step, checkpointed).
 
 Parts 1, 3 and 4 run twice, in fresh worker processes: with XLA's defaults and with
 `bundledyn.CPU_XLA_FLAGS` (XLA reads its flags when the backend starts).
@@ -830,10 +831,17 @@ def baseline_samplers(t1, rtol):
                 lambda i, y, f=field: f(0.0, y, None), y0, LOOP_EVALS
             ),
             f"baseline_{depth}_field_vjp": loop_sampler(
-                lambda i, y, f=field: jax.vjp(lambda y: f(0.0, y, None), y)[1](y)[0], y0, LOOP_EVALS
+                vjp_unit(lambda i, y, f=field: f(0.0, y, None)), y0, LOOP_EVALS
             ),
         }
     return samplers
+
+
+def vjp_unit(fn):
+    """The VJP of a loop unit `fn(i, y)` at `y`, pulling back `y` itself (shaped as `y`)."""
+    import jax
+
+    return lambda i, y: jax.vjp(lambda y: fn(i, y), y)[1](y)[0]
 
 
 def gradient_units(scene, state, t1, rtol):
@@ -841,7 +849,6 @@ def gradient_units(scene, state, t1, rtol):
     (`loop_sampler`): the body field the RKMK stages evaluate, one `RKMK87` step at the
     forward solve's mean step, and their VJPs; with the solve's steps (accepted and
     rejected)."""
-    import jax
 
     import bundledyn as bd
     from bundledyn._scene import SceneTerm
@@ -859,10 +866,12 @@ def gradient_units(scene, state, t1, rtol):
     def step(i, y):
         return solver.step(term, 0.0, t1 / steps, y, None, None, False)[0]
 
-    def vjp(fn):
-        return lambda i, y: jax.vjp(lambda y: fn(i, y), y)[1](y)[0]
-
-    units = {"field": field, "field_vjp": vjp(field), "step": step, "step_vjp": vjp(step)}
+    units = {
+        "field": field,
+        "field_vjp": vjp_unit(field),
+        "step": step,
+        "step_vjp": vjp_unit(step),
+    }
     calls = {"field": LOOP_EVALS, "step": LOOP_EVALS // 10}
     samplers = {k: loop_sampler(fn, y, calls[k.split("_")[0]]) for k, fn in units.items()}
     return samplers, {

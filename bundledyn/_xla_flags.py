@@ -49,9 +49,9 @@ def use_cpu_xla_flags() -> bool:
       slow phases remain either way, pinned to one core too.)
     - `--xla_cpu_experimental_ynn_fusion_type=` (empty: no YNNPACK fusions): XLA's default
       (`individual_dot`) hands dots to YNNPACK calls (a 12×10 by 10×4 float64 product,
-      not a 6×6 one), whose overhead exceeds the work at these sizes. Each program compiled both ways in one process
-      (the option passed to `.compile()`) and the two alternated over 11–15 rounds on 2
-      cores (jaxlib 0.10.2, 2026-11-24), medians of the per-round time ratios: the 5-body
+      not a 6×6 one), whose overhead exceeds the work at these sizes. Each program
+      compiled both ways in one process (the option passed to `.compile()`) and the two
+      alternated over 11–15 rounds on 2 cores (jaxlib 0.10.2, 2026-11-24), medians of the per-round time ratios: the 5-body
       field 0.68–0.71× (6.6 against 9.1 µs at the minimum), its VJP 0.78×, an `RKMK87`
       step 0.78× and its VJP 0.82×, the 20-body field 0.84×, 10 s of the 5-body chain
       0.70× and its `jax.grad` 0.76×; one body's field and 1024 vmapped rollouts
