@@ -1,6 +1,6 @@
 """bundledyn: differentiable dynamics on principal SE(3) bundles (Chevallier's equations) in JAX."""
 
-import pathlib
+import importlib.metadata
 
 from . import checks, lie
 from ._dynamics import (
@@ -17,8 +17,10 @@ from ._dynamics import (
     shape_acceleration,
 )
 from ._effects import (
+    AbstractCentralGravity,
     AbstractEffect,
     AbstractPotential,
+    BodywiseGravityGradient,
     ExternalWrench,
     Gravity,
     GravityGradient,
@@ -41,13 +43,16 @@ from ._geometry import (
     shape_metric,
 )
 from ._holonomy import curvature_by_holonomy, horizontal_lift, square_loop_holonomy
+from ._paths import models, scenes
 from ._precision import enable_x64
 from ._scene import Free, Prescribed, Scene
 from ._scene_file import SceneFile, SceneFileError, load_system
 from ._simulate import project_to_se3, simulate
 from ._solids import AbstractSolid, Box, Capsule, Ellipsoid
+from ._solver._base import AbstractLieGroupSolver
 from ._solver._lie_euler import LieEuler
-from ._solver._rkmk import RKMK4, RKMK54, RKMK87
+from ._solver._rkmk import RKMK4, RKMK54, RKMK87, AbstractRKMK
+from ._solver._tableau import LieButcherTableau
 from ._solver._variational import VariationalMidpoint
 from ._state import State
 from ._systems._affine_body import AffineBody
@@ -62,94 +67,106 @@ from ._systems._joints import (
     Spherical,
     Universal,
 )
-from ._systems._multibody import Link, Multibody
+from ._systems._link import Link
+from ._systems._metric_jet import AbstractMetricJet, DenseMetricJet
+from ._systems._mujoco_state import state_from_mujoco, state_to_mujoco
+from ._systems._multibody import AbstractMultibody, Multibody, Resectioned
 from ._systems._rigid_body import RigidBody, spatial_inertia
+from ._term import AbstractBodyTerm, SceneTerm
 from ._trajectory import Trajectory
 from ._xla_flags import CPU_XLA_FLAGS, use_cpu_xla_flags
 
-__version__ = "0.1.0"
-
-#: Folder of the example models shipped with the package (MJCF and URDF).
-models = pathlib.Path(__file__).parent / "models"
-#: Folder of the example scene files shipped with the package (TOML, see `SceneFile`).
-scenes = pathlib.Path(__file__).parent / "scenes"
+__version__ = importlib.metadata.version("bundledyn")
 
 __all__ = [
+    "AbstractBodyTerm",
+    "AbstractCentralGravity",
     "AbstractEffect",
     "AbstractFrame",
     "AbstractJoint",
+    "AbstractLieGroupSolver",
+    "AbstractMetricJet",
+    "AbstractMultibody",
     "AbstractPotential",
+    "AbstractRKMK",
     "AbstractSolid",
     "AbstractSystem",
-    "CPU_XLA_FLAGS",
     "AffineBody",
+    "BodywiseGravityGradient",
     "Boosted",
     "Box",
-    "Capsule",
+    "bundle_geometry",
     "BundleGeometry",
+    "Capsule",
+    "checks",
+    "coadjoint_term",
     "Composite",
+    "connection",
+    "CPU_XLA_FLAGS",
+    "curvature",
+    "curvature_by_holonomy",
+    "curvature_from_connection",
+    "curvature_term",
+    "DenseMetricJet",
     "Ellipsoid",
+    "enable_x64",
     "ExternalWrench",
     "Fixed",
+    "frame_transport_term",
     "Free",
     "FreeFalling",
     "GenericSystem",
     "Gravity",
     "GravityGradient",
-    "Kinematics",
-    "LieEuler",
-    "Link",
-    "MovingFrame",
-    "Multibody",
-    "Prescribed",
-    "Prismatic",
-    "RKMK4",
-    "RKMK54",
-    "RKMK87",
-    "Revolute",
-    "RigidBody",
-    "Scene",
-    "SceneFile",
-    "SceneFileError",
-    "ShapeDamper",
-    "ShapeForce",
-    "ShapePotential",
-    "ShapeSpring",
-    "Spherical",
-    "State",
-    "Trajectory",
-    "Universal",
-    "VariationalMidpoint",
-    "bundle_geometry",
-    "checks",
-    "coadjoint_term",
-    "connection",
-    "curvature",
-    "curvature_by_holonomy",
-    "curvature_from_connection",
-    "curvature_term",
-    "enable_x64",
-    "use_cpu_xla_flags",
-    "frame_transport_term",
     "horizontal_lift",
     "inertia_covariant_derivative",
+    "Kinematics",
     "kinetic_covariant_derivative",
     "kinetic_energy",
     "levi_civita_term",
-    "load_system",
     "lie",
+    "LieButcherTableau",
+    "LieEuler",
+    "Link",
+    "load_system",
     "locked_acceleration",
     "locked_inertia",
     "locked_velocity",
     "mass_and_centre",
     "metric",
     "models",
+    "MovingFrame",
+    "Multibody",
+    "Prescribed",
+    "Prismatic",
     "project_to_se3",
     "reference_accelerations",
+    "Resectioned",
+    "Revolute",
+    "RigidBody",
+    "RKMK4",
+    "RKMK54",
+    "RKMK87",
+    "Scene",
+    "SceneFile",
+    "SceneFileError",
     "scenes",
+    "SceneTerm",
     "shape_acceleration",
     "shape_metric",
+    "ShapeDamper",
+    "ShapeForce",
+    "ShapePotential",
+    "ShapeSpring",
     "simulate",
     "spatial_inertia",
+    "Spherical",
     "square_loop_holonomy",
+    "State",
+    "state_from_mujoco",
+    "state_to_mujoco",
+    "Trajectory",
+    "Universal",
+    "use_cpu_xla_flags",
+    "VariationalMidpoint",
 ]

@@ -1,10 +1,10 @@
-"""Effects a scene can name: gravity, gravity gradient, shape springs and dampers, forces.
+r"""Effects a scene can name: gravity, gravity gradient, shape springs and dampers, forces.
 
 An effect turns the current kinematics into generalized forces in the variables
-$(\\xi, \\dot q)$: a wrench $F_b$ on the section frame (section axes, angular first) and a
-shape force $Q_H$. Conservative effects also give their potential $\\Pi(t, g, q)$, and their
-forces are $F_b = -\\partial_\\eta \\Pi(g\\exp\\hat\\eta, q)|_0$ (the seed's $\\mathcal L\\Pi$ with a sign)
-and $Q_H = -\\partial_q\\Pi$, by autodiff.
+$(\xi, \dot q)$: a wrench $F_b$ on the section frame (section axes, angular first) and a
+shape force $Q_H$. Conservative effects also give their potential $\Pi(t, g, q)$, and their
+forces are $F_b = -\partial_\eta \Pi(g\exp\hat\eta, q)|_0$ (the seed's $\mathcal L\Pi$ with a sign)
+and $Q_H = -\partial_q\Pi$, by autodiff.
 Only the effects a scene names enter its compiled vector field.
 Their `potential` and `generalized_force` are compiled (`equinox.filter_jit`): called on
 concrete values, each runs as one program, not primitive by primitive.
@@ -21,6 +21,7 @@ from jaxtyping import Array, Float
 
 from . import lie
 from ._systems._base import AbstractSystem
+from ._systems._multibody import AbstractMultibody
 
 
 class Kinematics(NamedTuple):
@@ -34,10 +35,10 @@ class Kinematics(NamedTuple):
 
 
 def mass_and_centre(I_r: Float[Array, "6 6"]):
-    """Total mass $m$ and centre of mass $c$ (section frame) read off the locked inertia.
+    r"""Total mass $m$ and centre of mass $c$ (section frame) read off the locked inertia.
 
-    By Lemma 1 / Theorem 2.3 (seed 004), $I_r = \\begin{bmatrix} l - m\\tilde c\\tilde c & m\\tilde c\\\\
-    m\\tilde c^T & m 1\\end{bmatrix}$ for a Galilean-invariant system.
+    By Lemma 1 / Theorem 2.3 (seed 004), $I_r = \begin{bmatrix} l - m\tilde c\tilde c & m\tilde c\\
+    m\tilde c^T & m 1\end{bmatrix}$ for a Galilean-invariant system.
 
     **Returns:**
 
@@ -62,11 +63,11 @@ class AbstractEffect(eqx.Module):
 
 
 class AbstractPotential(AbstractEffect):
-    """A conservative effect given by its potential $\\Pi(t, g, q)$; forces by autodiff."""
+    r"""A conservative effect given by its potential $\Pi(t, g, q)$; forces by autodiff."""
 
     @abc.abstractmethod
     def potential(self, system: AbstractSystem, t, g, q):
-        """$\\Pi(t, g, q)$, a scalar."""
+        r"""$\Pi(t, g, q)$, a scalar."""
 
     @eqx.filter_jit
     def generalized_force(self, system, kin):
@@ -78,7 +79,7 @@ class AbstractPotential(AbstractEffect):
 
 
 class Gravity(AbstractPotential):
-    """Uniform gravity $\\gamma = g\\,\\chi$: $\\Pi = -m_g\\,\\gamma\\cdot(p + R(c + \\delta))$ (seed 004, (3.1)).
+    r"""Uniform gravity $\gamma = g\,\chi$: $\Pi = -m_g\,\gamma\cdot(p + R(c + \delta))$ (seed 004, (3.1)).
 
     The centre of mass $c(q)$ and mass $m$ come from the locked inertia
     (`mass_and_centre`), so gravity needs nothing but the metric.
@@ -86,9 +87,9 @@ class Gravity(AbstractPotential):
     **Arguments:**
 
     - `g`: magnitude of the acceleration of gravity (default 9.81).
-    - `direction`: unit vector $\\chi$ of gravity in the Galilean frame (default $-e_z$).
+    - `direction`: unit vector $\chi$ of gravity in the Galilean frame (default $-e_z$).
     - `gravitational_mass`: $m_g$; default: the inertial mass (the equivalence principle).
-    - `centre_offset`: $\\delta$, the centre of gravity minus the centre of mass in the section
+    - `centre_offset`: $\delta$, the centre of gravity minus the centre of mass in the section
       frame; default 0. Setting it apart breaks Theorem 3.4 (the seed's remark).
     """
 
@@ -125,31 +126,22 @@ class Gravity(AbstractPotential):
         return -m * gamma @ (g[:3, 3] + g[:3, :3] @ c)
 
 
-class GravityGradient(AbstractPotential):
-    """A central Newtonian field $-\\mu/|x - x_0|$ with its gravity gradient (seed 004, §3).
+class AbstractCentralGravity(AbstractPotential):
+    r"""A central Newtonian field $-\mu/|x - x_0|$ with its gravity gradient (seed 004, §3).
 
-    Each mass element's potential expanded to second order about a centre of mass
-    (MacCullagh's formula): $\\Pi = -\\tfrac{\\mu m}{\\rho} - \\tfrac{\\mu}{2\\rho^3}
-    (\\operatorname{tr} l - 3\\hat\\rho^T l\\hat\\rho)$ with $\\rho = c - x_0$ and $l$ the rotational
-    inertia about $c$. `per_body=True` sums it body by body over a `Multibody` (exact up to
-    each body's own third moments); `per_body=False` applies it once to the whole system,
-    with $m, c, l$ from the locked inertia (any system).
-
-    **Arguments:**
-
-    - `mu`: gravitational parameter $\\mu = G M$.
-    - `centre`: $x_0$, the attracting centre in the Galilean frame (default origin).
-    - `per_body`: static choice between the per-body sum and the system expansion.
+    Each mass element's potential is expanded to second order about its centre of mass
+    (MacCullagh's formula): $\Pi = -\tfrac{\mu m}{\rho} - \tfrac{\mu}{2\rho^3}
+    (\operatorname{tr} l - 3\hat\rho^T l\hat\rho)$ with $\rho = c - x_0$ and $l$ the rotational
+    inertia about $c$, summed over the elements that `mass_elements` gives.
     """
 
-    mu: Float[Array, ""]
-    centre: Float[Array, "3"]
-    per_body: bool = eqx.field(static=True)
+    mu: eqx.AbstractVar[Float[Array, ""]]
+    centre: eqx.AbstractVar[Float[Array, "3"]]
 
-    def __init__(self, mu, centre=(0.0, 0.0, 0.0), *, per_body=False):
-        self.mu = jnp.asarray(mu, dtype=float)
-        self.centre = jnp.asarray(centre, dtype=float)
-        self.per_body = bool(per_body)
+    @abc.abstractmethod
+    def mass_elements(self, system: AbstractSystem, g, q):
+        """The masses `(k,)`, centres of mass `(k, 3)` and rotational inertias about them
+        `(k, 3, 3)` of the elements the expansion is applied to, in the Galilean frame."""
 
     def _maccullagh(self, m, c_world, l_world):
         rho = c_world - self.centre
@@ -160,14 +152,67 @@ class GravityGradient(AbstractPotential):
 
     @eqx.filter_jit
     def potential(self, system, t, g, q):
+        return jnp.sum(jax.vmap(self._maccullagh)(*self.mass_elements(system, g, q)))
+
+
+class GravityGradient(AbstractCentralGravity):
+    r"""A central field's gravity gradient on the whole system, expanded about its centre of mass.
+
+    $m, c, l$ come from the locked inertia (`mass_and_centre`), so it applies to any
+    system (see `AbstractCentralGravity` for the potential).
+
+    **Arguments:**
+
+    - `mu`: gravitational parameter $\mu = G M$.
+    - `centre`: $x_0$, the attracting centre in the Galilean frame (default origin).
+    """
+
+    mu: Float[Array, ""]
+    centre: Float[Array, "3"]
+
+    def __init__(self, mu, centre=(0.0, 0.0, 0.0)):
+        self.mu = jnp.asarray(mu, dtype=float)
+        self.centre = jnp.asarray(centre, dtype=float)
+
+    def mass_elements(self, system, g, q):
         R, p = g[:3, :3], g[:3, 3]
-        if self.per_body:
-            poses = g @ system.body_poses(q)
-            c = poses[:, :3, 3] + jnp.einsum("nij,nj->ni", poses[:, :3, :3], system.com)
-            l = jnp.einsum("nij,njk,nlk->nil", poses[:, :3, :3], system.inertia, poses[:, :3, :3])
-            return jnp.sum(jax.vmap(self._maccullagh)(system.mass, c, l))
         m, c, l = mass_and_centre(system.metric(q)[:6, :6])
-        return self._maccullagh(m, p + R @ c, R @ l @ R.T)
+        return m[None], (p + R @ c)[None], (R @ l @ R.T)[None]
+
+
+class BodywiseGravityGradient(AbstractCentralGravity):
+    r"""A central field's gravity gradient summed body by body over a tree of bodies.
+
+    Exact up to each body's own third moments (see `AbstractCentralGravity`); the system
+    must be a `Multibody` (an `AbstractMultibody`).
+
+    **Arguments:**
+
+    - `mu`: gravitational parameter $\mu = G M$.
+    - `centre`: $x_0$, the attracting centre in the Galilean frame (default origin).
+    """
+
+    mu: Float[Array, ""]
+    centre: Float[Array, "3"]
+
+    def __init__(self, mu, centre=(0.0, 0.0, 0.0)):
+        self.mu = jnp.asarray(mu, dtype=float)
+        self.centre = jnp.asarray(centre, dtype=float)
+
+    def mass_elements(self, system, g, q):
+        _require_tree(system, "BodywiseGravityGradient")
+        poses = g @ system.body_poses(q)
+        R = poses[:, :3, :3]
+        c = poses[:, :3, 3] + jnp.einsum("nij,nj->ni", R, system.com)
+        return system.mass, c, jnp.einsum("nij,njk,nlk->nil", R, system.inertia, R)
+
+
+def _require_tree(system, what):
+    if not isinstance(system, AbstractMultibody):
+        raise ValueError(
+            f"`{what}` acts on the bodies of a tree and needs a Multibody, got "
+            f"{type(system).__name__}."
+        )
 
 
 def _shape_matrix(value, d, name):
@@ -184,7 +229,7 @@ def _shape_matrix(value, d, name):
 
 
 class ShapePotential(AbstractPotential):
-    """A potential of the shape alone, $\\Pi = V(q)$ (internal elastic energy, say).
+    r"""A potential of the shape alone, $\Pi = V(q)$ (internal elastic energy, say).
 
     **Arguments:**
 
@@ -199,7 +244,7 @@ class ShapePotential(AbstractPotential):
 
 
 class ShapeSpring(AbstractPotential):
-    """A linear spring on the shape, $\\Pi = \\tfrac12 (q - q_0)^T K (q - q_0)$.
+    r"""A linear spring on the shape, $\Pi = \tfrac12 (q - q_0)^T K (q - q_0)$.
 
     **Arguments:**
 
@@ -222,7 +267,7 @@ class ShapeSpring(AbstractPotential):
 
 
 class ShapeDamper(AbstractEffect):
-    """Linear damping of the shape velocity, $Q_H = -C\\dot q$.
+    r"""Linear damping of the shape velocity, $Q_H = -C\dot q$.
 
     **Arguments:**
 
@@ -241,7 +286,7 @@ class ShapeDamper(AbstractEffect):
 
 
 class ShapeForce(AbstractEffect):
-    """A shape force given by the user, $Q_H = f(t, q, \\dot q)$ (actuators, control laws).
+    r"""A shape force given by the user, $Q_H = f(t, q, \dot q)$ (actuators, control laws).
 
     **Arguments:**
 
@@ -256,11 +301,11 @@ class ShapeForce(AbstractEffect):
 
 
 class ExternalWrench(AbstractEffect):
-    """An external wrench on one body, given in that body's own frame.
+    r"""An external wrench on one body, given in that body's own frame.
 
     **Arguments:**
 
-    - `fn`: `f(t, g, q, xi, qdot) -> (6,)`, the wrench $(\\tau, f)$ on the body: torque about
+    - `fn`: `f(t, g, q, xi, qdot) -> (6,)`, the wrench $(\tau, f)$ on the body: torque about
       the body's origin and force, both in the body's axes (angular first); `g` is the
       section frame's pose in the Galilean frame.
     - `body`: index of the body of a `Multibody` (static), or `None` for the section frame.
@@ -274,11 +319,7 @@ class ExternalWrench(AbstractEffect):
         w = self.fn(kin.t, kin.g, kin.q, kin.xi, kin.qdot)
         if self.body is None:
             return w, jnp.zeros_like(kin.q)
-        if not hasattr(system, "velocity_jacobians"):
-            raise ValueError(
-                f"`ExternalWrench(body={self.body})` needs a Multibody; use body=None for the "
-                "section frame."
-            )
+        _require_tree(system, f"ExternalWrench(body={self.body})")
         r, Jhat = system.velocity_jacobians(kin.q)
         # The body twist is Ad_{r⁻¹} Ĵ [ξ; q̇], so the wrench's virtual power gives Ĵᵀ Ad_{r⁻¹}ᵀ w.
         generalized = Jhat[self.body].T @ lie.Ad(lie.se3_inv(r[self.body])).T @ w

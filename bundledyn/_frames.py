@@ -1,9 +1,9 @@
-"""Frames of reference in which a scene is written (seed 004, §2 (2.8)–(2.10), §3).
+r"""Frames of reference in which a scene is written (seed 004, §2 (2.8)–(2.10), §3).
 
-A frame $\\mathcal R'$ moves relative to the Galilean frame $\\mathcal R$ by $M(t)\\in SE(3)$:
-a configuration seen as $\\sigma$ from $\\mathcal R'$ is $s = M(t)\\cdot\\sigma$ in $\\mathcal R$.
+A frame $\mathcal R'$ moves relative to the Galilean frame $\mathcal R$ by $M(t)\in SE(3)$:
+a configuration seen as $\sigma$ from $\mathcal R'$ is $s = M(t)\cdot\sigma$ in $\mathcal R$.
 A scene in a moving frame integrates the true (Galilean) dynamics expressed in
-$\\mathcal R'$, i.e. (2.9)–(2.10) with all their frame terms.
+$\mathcal R'$, i.e. (2.9)–(2.10) with all their frame terms.
 """
 
 import abc
@@ -25,7 +25,7 @@ class AbstractFrame(eqx.Module):
         """$M(t)$, the pose of the frame in the Galilean frame."""
 
     def motion_and_velocity(self, t):
-        """$M$, the frame's body velocity $\\vartheta = (M^{-1}\\dot M)^\\vee$ and its derivative $\\dot\\vartheta$."""
+        r"""$M$, the frame's body velocity $\vartheta = (M^{-1}\dot M)^\vee$ and its derivative $\dot\vartheta$."""
 
         def theta(t):
             M, Mdot = jax.jvp(self.motion, (t,), (jnp.ones_like(t),))
@@ -55,7 +55,7 @@ def _translation(x):
 
 
 class Boosted(AbstractFrame):
-    """A Galilean boost: the frame translates with constant `velocity`, $M(t) = (1, t\\,u)$.
+    r"""A Galilean boost: the frame translates with constant `velocity`, $M(t) = (1, t\,u)$.
 
     Under Theorem 2.2's conditions the equations are the same in this frame.
 
@@ -74,11 +74,11 @@ class Boosted(AbstractFrame):
 
 
 class FreeFalling(AbstractFrame):
-    """A frame falling freely in uniform gravity: $M(t) = \\exp(z(t)\\chi)$, $z = \\tfrac12 g t^2$ (Theorem 3.4).
+    r"""A frame falling freely in uniform gravity: $M(t) = \exp(z(t)\chi)$, $z = \tfrac12 g t^2$ (Theorem 3.4).
 
     **Arguments:**
 
-    - `g`: magnitude of gravity; `direction`: its unit direction $\\chi$ (default $-e_z$).
+    - `g`: magnitude of gravity; `direction`: its unit direction $\chi$ (default $-e_z$).
     """
 
     g: Float[Array, ""]

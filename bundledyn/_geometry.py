@@ -1,10 +1,10 @@
-"""Bundle geometry from the invariant metric: locked inertia, connection, shape metric, curvature.
+r"""Bundle geometry from the invariant metric: locked inertia, connection, shape metric, curvature.
 
 All functions are pure functions of a system and its shape $q$; they vmap over $q$ and
 differentiate, and are compiled (`equinox.filter_jit`): called on concrete values, each
 runs as one program rather than op by op (the curvature of a 3-body chain lowered about
 300 programs, one per primitive). Notation of DESIGN §2: $G = [[I_r, B], [B^T, M]]$ in
-the variables $(\\xi, \\dot q)$ with $\\xi = g^{-1}\\dot g$ of the section frame.
+the variables $(\xi, \dot q)$ with $\xi = g^{-1}\dot g$ of the section frame.
 """
 
 import equinox as eqx
@@ -18,7 +18,7 @@ from ._systems._base import AbstractSystem
 
 @eqx.filter_jit
 def metric(system: AbstractSystem, q: Float[Array, " d"]) -> Float[Array, "6+d 6+d"]:
-    """The invariant metric $G(q)$ in the trivialization variables $(\\xi, \\dot q)$.
+    r"""The invariant metric $G(q)$ in the trivialization variables $(\xi, \dot q)$.
 
     **Arguments:**
 
@@ -27,7 +27,7 @@ def metric(system: AbstractSystem, q: Float[Array, " d"]) -> Float[Array, "6+d 6
 
     **Returns:**
 
-    $G(q)$, shape `(6+d, 6+d)`: $T = \\tfrac12[\\xi;\\dot q]^T G [\\xi;\\dot q]$ (DESIGN §2).
+    $G(q)$, shape `(6+d, 6+d)`: $T = \tfrac12[\xi;\dot q]^T G [\xi;\dot q]$ (DESIGN §2).
     """
     return system.metric(q)
 
@@ -38,12 +38,12 @@ def _blocks(G):
 
 @eqx.filter_jit
 def locked_inertia(system: AbstractSystem, q) -> Float[Array, "6 6"]:
-    """The locked inertia $I_r(q)$: the inertia of the frozen system (seed 004: $\\mathbf I(s)$).
+    r"""The locked inertia $I_r(q)$: the inertia of the frozen system (seed 004: $\mathbf I(s)$).
 
     **Returns:**
 
     The 6×6 block $I_r$ of the metric, acting on twists of the section frame
-    (angular first): $\\mathbf J(s)(X, Y) = X^T I_r Y$.
+    (angular first): $\mathbf J(s)(X, Y) = X^T I_r Y$.
     """
     return system.metric(q)[:6, :6]
 
@@ -55,10 +55,10 @@ def _connection_from_metric(G):
 
 @eqx.filter_jit
 def connection(system: AbstractSystem, q) -> Float[Array, "6 d"]:
-    """The local form $A(q) = I_r^{-1} B$ of the dynamic connection (seed 004, §2).
+    r"""The local form $A(q) = I_r^{-1} B$ of the dynamic connection (seed 004, §2).
 
-    The connection form is $\\boldsymbol\\omega(\\dot s) = \\operatorname{Ad}_g U$ with the locked
-    velocity $U = \\xi + A\\dot q$; a motion is horizontal iff $U = 0$, i.e. iff its total
+    The connection form is $\boldsymbol\omega(\dot s) = \operatorname{Ad}_g U$ with the locked
+    velocity $U = \xi + A\dot q$; a motion is horizontal iff $U = 0$, i.e. iff its total
     momentum $I_r U$ vanishes.
 
     **Returns:**
@@ -70,13 +70,13 @@ def connection(system: AbstractSystem, q) -> Float[Array, "6 d"]:
 
 @eqx.filter_jit
 def shape_metric(system: AbstractSystem, q) -> Float[Array, "d d"]:
-    """The shape metric $\\mathcal J_{\\text{def}}(q) = M - B^T I_r^{-1} B$ of (2.1).
+    r"""The shape metric $\mathcal J_{\text{def}}(q) = M - B^T I_r^{-1} B$ of (2.1).
 
     **Returns:**
 
-    The $d\\times d$ metric of the deformation kinetic energy $K_{\\text{def}} =
-    \\tfrac12\\dot q^T \\mathcal J_{\\text{def}}\\dot q$, so that
-    $T = \\tfrac12 U^T I_r U + \\tfrac12 \\dot q^T \\mathcal J_{\\text{def}} \\dot q$.
+    The $d\times d$ metric of the deformation kinetic energy $K_{\text{def}} =
+    \tfrac12\dot q^T \mathcal J_{\text{def}}\dot q$, so that
+    $T = \tfrac12 U^T I_r U + \tfrac12 \dot q^T \mathcal J_{\text{def}} \dot q$.
     """
     G = system.metric(q)
     _, B, M = _blocks(G)
@@ -84,15 +84,15 @@ def shape_metric(system: AbstractSystem, q) -> Float[Array, "d d"]:
 
 
 def curvature_from_connection(A: Float[Array, "6 d"], dA: Float[Array, "d 6 d"]):
-    """The curvature of a connection with local form $A$ and derivative $dA[k, :, j] = \\partial_k A_j$.
+    r"""The curvature of a connection with local form $A$ and derivative $dA[k, :, j] = \partial_k A_j$.
 
-    $\\Omega(u, w) = dA(u, w) - [A u, A w]$ with $dA(u,w) = (\\partial_u A) w - (\\partial_w A) u$;
-    with this sign a small horizontal loop of area $\\varepsilon^2$ traversed first along
-    $u$ then along $w$ displaces the section frame by $g \\mapsto g\\exp(-\\varepsilon^2\\Omega(u,w))$.
+    $\Omega(u, w) = dA(u, w) - [A u, A w]$ with $dA(u,w) = (\partial_u A) w - (\partial_w A) u$;
+    with this sign a small horizontal loop of area $\varepsilon^2$ traversed first along
+    $u$ then along $w$ displaces the section frame by $g \mapsto g\exp(-\varepsilon^2\Omega(u,w))$.
 
     **Returns:**
 
-    $\\Omega$, shape `(6, d, d)`, antisymmetric in the last two indices.
+    $\Omega$, shape `(6, d, d)`, antisymmetric in the last two indices.
     """
     T = jnp.moveaxis(dA, 1, 0)  # T[:, j, k] = ∂_j A_k
     brackets = jnp.moveaxis(lie.bracket(A.T[:, None, :], A.T[None, :, :]), -1, 0)
@@ -101,14 +101,14 @@ def curvature_from_connection(A: Float[Array, "6 d"], dA: Float[Array, "d 6 d"])
 
 @eqx.filter_jit
 def curvature(system: AbstractSystem, q) -> Float[Array, "6 d d"]:
-    """The curvature $\\Omega_r(\\delta q, \\delta' q)$ of the dynamic connection on the section.
+    r"""The curvature $\Omega_r(\delta q, \delta' q)$ of the dynamic connection on the section.
 
     Computed from the Jacobian of $A$ by forward-mode autodiff (structure equation,
     seed 004 §2; see `curvature_from_connection` for the sign convention).
 
     **Returns:**
 
-    $\\Omega_r$, shape `(6, d, d)`, with $\\Omega_r(u, w) = $ `einsum("ijk,j,k", Omega, u, w)`.
+    $\Omega_r$, shape `(6, d, d)`, with $\Omega_r(u, w) = $ `einsum("ijk,j,k", Omega, u, w)`.
     """
 
     def connection_twice(q_):
@@ -121,12 +121,12 @@ def curvature(system: AbstractSystem, q) -> Float[Array, "6 d d"]:
 
 @eqx.filter_jit
 def kinetic_energy(system: AbstractSystem, q, xi, qdot) -> Float[Array, ""]:
-    """$T = \\tfrac12 [\\xi;\\dot q]^T G(q) [\\xi;\\dot q]$ (2.1).
+    r"""$T = \tfrac12 [\xi;\dot q]^T G(q) [\xi;\dot q]$ (2.1).
 
     **Arguments:**
 
     - `q`, `qdot`: shape and shape velocity, `(d,)`.
-    - `xi`: $g^{-1}\\dot g$ of the section frame, `(6,)`.
+    - `xi`: $g^{-1}\dot g$ of the section frame, `(6,)`.
     """
     velocity = jnp.concatenate([xi, qdot])
     return 0.5 * velocity @ system.metric(q) @ velocity
@@ -134,5 +134,5 @@ def kinetic_energy(system: AbstractSystem, q, xi, qdot) -> Float[Array, ""]:
 
 @eqx.filter_jit
 def locked_velocity(system: AbstractSystem, q, xi, qdot) -> Float[Array, "6"]:
-    """The locked velocity $U = \\xi + A(q)\\dot q$ (the body form of $\\boldsymbol\\omega(\\dot s)$)."""
+    r"""The locked velocity $U = \xi + A(q)\dot q$ (the body form of $\boldsymbol\omega(\dot s)$)."""
     return xi + connection(system, q) @ qdot

@@ -15,10 +15,10 @@ _GAUSS = (0.5 - np.sqrt(3.0) / 6.0, 0.5 + np.sqrt(3.0) / 6.0)
 
 @eqx.filter_jit
 def horizontal_lift(system: AbstractSystem, path, *, steps: int = 64) -> Float[Array, "4 4"]:
-    """Group displacement of the horizontal lift of a shape path $s\\mapsto q(s)$, $s\\in[0,1]$.
+    r"""Group displacement of the horizontal lift of a shape path $s\mapsto q(s)$, $s\in[0,1]$.
 
-    A horizontal motion has zero locked velocity, $U = \\xi + A(q)\\dot q = 0$ (seed 004, §2),
-    so the section frame obeys $\\dot g = g\\,\\hat\\xi$ with $\\xi = -A(q)\\,q'(s)$. This
+    A horizontal motion has zero locked velocity, $U = \xi + A(q)\dot q = 0$ (seed 004, §2),
+    so the section frame obeys $\dot g = g\,\hat\xi$ with $\xi = -A(q)\,q'(s)$. This
     integrates it with the fourth-order Magnus method (two Gauss points), exactly on SE(3).
 
     **Arguments:**
@@ -49,7 +49,7 @@ def horizontal_lift(system: AbstractSystem, path, *, steps: int = 64) -> Float[A
 
 @eqx.filter_jit
 def square_loop_holonomy(system, q, u, w, eps, *, steps: int = 16):
-    """Holonomy of the square loop $q \\to q+\\varepsilon u \\to q+\\varepsilon(u+w) \\to q+\\varepsilon w \\to q$.
+    r"""Holonomy of the square loop $q \to q+\varepsilon u \to q+\varepsilon(u+w) \to q+\varepsilon w \to q$.
 
     **Arguments:**
 
@@ -58,8 +58,8 @@ def square_loop_holonomy(system, q, u, w, eps, *, steps: int = 16):
 
     **Returns:**
 
-    The 4×4 holonomy; to second order it is $\\exp(-\\varepsilon^2\\,\\Omega(u, w))$ with the
-    curvature $\\Omega$ of `curvature`, the error being $O(\\varepsilon^3)$.
+    The 4×4 holonomy; to second order it is $\exp(-\varepsilon^2\,\Omega(u, w))$ with the
+    curvature $\Omega$ of `curvature`, the error being $O(\varepsilon^3)$.
     """
     corners = jnp.stack([q, q + eps * u, q + eps * (u + w), q + eps * w, q])
 
@@ -74,10 +74,10 @@ def square_loop_holonomy(system, q, u, w, eps, *, steps: int = 16):
 
 @eqx.filter_jit
 def curvature_by_holonomy(system: AbstractSystem, q, eps, *, steps: int = 16):
-    """The curvature estimated from holonomies of small horizontal square loops.
+    r"""The curvature estimated from holonomies of small horizontal square loops.
 
-    $\\Omega(e_j, e_k) \\approx -\\log(\\text{hol}_{jk}) / \\varepsilon^2$ for every pair of shape
-    coordinates: an independent check of `curvature` (error $O(\\varepsilon)$).
+    $\Omega(e_j, e_k) \approx -\log(\text{hol}_{jk}) / \varepsilon^2$ for every pair of shape
+    coordinates: an independent check of `curvature` (error $O(\varepsilon)$).
 
     **Arguments:**
 

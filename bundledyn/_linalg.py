@@ -3,8 +3,8 @@
 The vector field of a tree of bodies is a few dozen products of 3×3 to 6×6 matrices. On
 XLA's CPU every `dot` is a kernel of its own, which XLA does not fuse with its neighbours,
 and launching one (~0.3 µs) costs more than the arithmetic of a 6×6 product; a LAPACK
-factorization of a 6×6 matrix costs microseconds (an LU solve against the identity
-~2.5 µs, with a pivot loop; a Cholesky ~4 µs) and under `vmap` runs once per instance.
+factorization of a 6×6 matrix costs microseconds (with a pivot loop) and under `vmap` runs
+once per instance.
 Written as broadcast products and sums (`einsum`, `matmul`) and closed-form inverses
 (`inverse_3x3`, `spd_inverse_6x6`) and unrolled Cholesky solves (`spd_solve`, up to 6×6),
 the same work is elementwise, fuses into a few kernels and batches for free. Larger
@@ -23,10 +23,8 @@ import jax.scipy.linalg as jsl
 import numpy as np
 from jaxtyping import Array, Float
 
-# A 6×6 by 6×6 product. Measured on 10 s rollouts of the 5-body chain against `dot`
-# everywhere, alternating runs: with 216, single rollouts 20–50 % faster and 1024 vmapped
-# ones as fast (pinned to one core) or 20 % faster; with 1024, the products over bodies
-# fuse too and the vmapped rollouts were 25 % slower.
+# A 6×6 by 6×6 product: up to it, fused broadcast products beat `dot` kernels; with a larger
+# limit the products over bodies fuse too, and vmapped rollouts get slower.
 _FUSED_PRODUCT_LIMIT = 216
 
 
@@ -116,14 +114,22 @@ def _fused_einsum_jvp(letters, order, n_out, primals, tangents):
     return out, functools.reduce(operator.add, parts) if parts else jnp.zeros_like(out)
 
 
+def dot(a, b) -> Array:
+    """`a @ b` as XLA's own `dot` kernel, at full precision (no TF32 on accelerators).
+
+    For the solvers' products with the pose, which stay one kernel each rather than the
+    fused elementwise work of `matmul`.
+    """
+    return jnp.matmul(a, b, precision=lax.Precision.HIGHEST)
+
+
 def take(x, indices, axis: int = 0) -> Array:
     """`x` indexed by constant integers along `axis`, as slices of their consecutive runs.
 
     Indexing by a NumPy array is a `gather`, which reverse mode transposes to a
     `scatter-add` that XLA's CPU runs as a loop over the indices; a slice transposes to a
-    `pad`, which fuses with its neighbours. In the forward kinematics of a tree this took
-    eight scatter loops out of the VJP of the 5-body chain's vector field: 140–152 µs →
-    89 µs, and `jax.grad` of its 10 s rollout 25 % faster (paired runs).
+    `pad`, which fuses with its neighbours: the reverse pass of a tree's forward kinematics
+    has no scatter loop.
 
     **Arguments:**
 
@@ -169,7 +175,7 @@ _NEXT_T, _AFTER_T = (_I + 1) % 3, (_I + 2) % 3
 
 @jax.custom_jvp
 def inverse_3x3(M: Float[Array, "3 3"]) -> Float[Array, "3 3"]:
-    """$M^{-1} = \\operatorname{adj}(M)/\\det M$ (the rows of the adjugate are cross products of columns).
+    r"""$M^{-1} = \operatorname{adj}(M)/\det M$ (the rows of the adjugate are cross products of columns).
 
     **Arguments:**
 
@@ -177,7 +183,7 @@ def inverse_3x3(M: Float[Array, "3 3"]) -> Float[Array, "3 3"]:
 
     **Returns:**
 
-    $M^{-1}$, with rows $(c_1\\times c_2,\\ c_2\\times c_0,\\ c_0\\times c_1)/(c_0\\cdot(c_1\\times c_2))$
+    $M^{-1}$, with rows $(c_1\times c_2,\ c_2\times c_0,\ c_0\times c_1)/(c_0\cdot(c_1\times c_2))$
     for the columns $c_j$ of $M$.
     """
     adjugate = M[_NEXT, _NEXT_T] * M[_AFTER, _AFTER_T] - M[_AFTER, _NEXT_T] * M[_NEXT, _AFTER_T]
@@ -194,14 +200,14 @@ def _inverse_3x3_jvp(primals, tangents):
 
 
 def spd_inverse_6x6(M: Float[Array, "6 6"]) -> Float[Array, "6 6"]:
-    """Inverse of a symmetric positive definite 6×6 matrix by its 3×3 blocks (Schur complement).
+    r"""Inverse of a symmetric positive definite 6×6 matrix by its 3×3 blocks (Schur complement).
 
-    With $M = \\begin{bmatrix} P & Q \\\\ Q^T & D\\end{bmatrix}$, $K = QD^{-1}$ and the Schur
+    With $M = \begin{bmatrix} P & Q \\ Q^T & D\end{bmatrix}$, $K = QD^{-1}$ and the Schur
     complement $S = P - KQ^T$ (SPD whenever $M$ is),
 
-    $$M^{-1} = \\begin{bmatrix} S^{-1} & X \\\\ X^T & D^{-1} - K^T X\\end{bmatrix},\\quad X = -S^{-1}K.$$
+    $$M^{-1} = \begin{bmatrix} S^{-1} & X \\ X^T & D^{-1} - K^T X\end{bmatrix},\quad X = -S^{-1}K.$$
 
-    For a spatial inertia (angular first; every locked inertia is one) $D = m\\mathbf 1$ and $S$
+    For a spatial inertia (angular first; every locked inertia is one) $D = m\mathbf 1$ and $S$
     is the rotational inertia about the centre of mass, so both 3×3 inverses are as well
     conditioned as the body and the result is as accurate as LAPACK's (tests: forward error
     within 4 κ ε up to κ ~ 1e10). For an arbitrary SPD matrix the form is not backward
@@ -223,11 +229,9 @@ def spd_inverse_6x6(M: Float[Array, "6 6"]) -> Float[Array, "6 6"]:
     return jnp.block([[S_inv, X], [X.T, D_inv - matmul(K.T, X)]])
 
 
-# Largest SPD solve that `spd_solve` unrolls. Against LAPACK's Cholesky and solve (two custom
-# calls), factorizing a new matrix in each pass of a compiled loop on XLA's CPU (medians):
-# d = 4, 0.54 against 1.77 µs (VJP 0.82 against 3.0); d = 6, 0.71 against 1.19 (VJP 1.1
-# against 2.0); d = 7 about even; d = 8, 2.4 against 1.6. The unrolled factor grows as d³
-# and is inlined into each of its uses.
+# Largest SPD solve that `spd_solve` unrolls: up to here the unrolled factorization beats
+# LAPACK's two custom calls on XLA's CPU; beyond, its d³ elementwise work, inlined into each
+# use, costs more.
 _UNROLLED_SOLVE_LIMIT = 6
 
 
@@ -292,30 +296,28 @@ _EXPM_SQUARINGS = 10
 
 
 def expm(S: Float[Array, "n n"]) -> Float[Array, "n n"]:
-    """Matrix exponential of a small square matrix by Taylor series, scaling and squaring.
+    r"""Matrix exponential of a small square matrix by Taylor series, scaling and squaring.
 
-    $e^S = \\big(T_{12}(2^{-k}S)\\big)^{2^k}$ with $T_{12}$ the degree-12 Taylor polynomial
-    (Horner's scheme) and $k = \\max(0, \\lceil\\log_2 4\\|S\\|_\\infty\\rceil)$, so that
-    $\\|2^{-k}S\\|_\\infty \\le 1/4$ and the truncation is below rounding (Moler & Van Loan,
+    $e^S = \big(T_{12}(2^{-k}S)\big)^{2^k}$ with $T_{12}$ the degree-12 Taylor polynomial
+    (Horner's scheme) and $k = \max(0, \lceil\log_2 4\|S\|_\infty\rceil)$, so that
+    $\|2^{-k}S\|_\infty \le 1/4$ and the truncation is below rounding (Moler & Van Loan,
     *Nineteen dubious ways to compute the exponential of a matrix*, method 3).
     `jax.scipy.linalg.expm` chooses among five Padé orders with a `switch`, solves
-    $Q^{-1}P$ by LU and squares under a `cond` per step. Differentiated twice (the affine
-    body's metric jet by autodiff, before it had a closed form) it made that body's vector
-    field take 4.3–5.5 s to trace and compile against 3.0–3.4 s, and each evaluation 5–40 %
-    longer (alternating runs). The affine body's stretch, its divided differences (batches
-    of bidiagonal matrices) and the autodiff behind its jet's derivatives use this one.
-    Here the work is eleven products, ten squarings and selects, differentiable in both
-    modes; the products stay `dot`s (as fused broadcasts the chain was 5× slower).
+    $Q^{-1}P$ by LU and squares under a `cond` per step, which traces, compiles and
+    differentiates slower. The affine body's stretch, its divided differences (batches of
+    bidiagonal matrices) and the autodiff behind its jet's derivatives use this one. Here
+    the work is eleven products, ten squarings and selects, differentiable in both modes;
+    the products stay `dot`s (as fused broadcasts they are slower).
     $k$ is piecewise constant in $S$ and is not differentiated: the result is $e^S$ for
     every $k$, so its derivative is that of $e^S$.
 
     **Arguments:**
 
-    - `S`: a small $n\\times n$ matrix.
+    - `S`: a small $n\times n$ matrix.
 
     **Returns:**
 
-    $e^S$; NaN where $\\|S\\|_\\infty > 256$, past the ten squarings.
+    $e^S$; NaN where $\|S\|_\infty > 256$, past the ten squarings.
     """
     norm = jnp.max(jnp.sum(jnp.abs(S), axis=-1))
     tiny = jnp.finfo(S.dtype).tiny

@@ -16,9 +16,16 @@ import jax.numpy as jnp
 import numpy as np
 
 from . import lie
-from ._effects import Gravity, GravityGradient, ShapeDamper, ShapeSpring
+from ._effects import (
+    BodywiseGravityGradient,
+    Gravity,
+    GravityGradient,
+    ShapeDamper,
+    ShapeSpring,
+)
 from ._frames import Boosted, FreeFalling
 from ._geometry import connection
+from ._paths import models
 from ._scene import Prescribed, Scene
 from ._simulate import simulate
 from ._solids import Box, Capsule, Ellipsoid
@@ -28,7 +35,8 @@ from ._solver._variational import VariationalMidpoint
 from ._state import State
 from ._systems._affine_body import AffineBody
 from ._systems._joints import Fixed, Prismatic, Revolute, Spherical, Universal
-from ._systems._multibody import Link, Multibody
+from ._systems._link import Link
+from ._systems._multibody import Multibody
 from ._systems._rigid_body import RigidBody
 from ._trajectory import Trajectory
 
@@ -253,8 +261,6 @@ def _affine_body(t: _Table):
 
 
 def _model(t: _Table, kind, folder):
-    from . import models
-
     if t.has("path") == t.has("model"):
         raise t.fail("path", "give exactly one of `path` (a file) or `model` (a shipped model).")
     if t.has("model"):
@@ -325,11 +331,8 @@ def _effect(t: _Table, d):
                 centre_offset=t.array("centre_offset", (3,)) if t.has("centre_offset") else None,
             )
         elif kind == "gravity_gradient":
-            effect = GravityGradient(
-                t.number("mu"),
-                t.array("centre", (3,), (0.0, 0.0, 0.0)),
-                per_body=t.boolean("per_body", False),
-            )
+            central = BodywiseGravityGradient if t.boolean("per_body", False) else GravityGradient
+            effect = central(t.number("mu"), t.array("centre", (3,), (0.0, 0.0, 0.0)))
         elif kind == "shape_spring":
             effect = ShapeSpring(
                 t.vector_or_scalar("stiffness", d), t.vector_or_scalar("rest", d, 0.0)
@@ -341,7 +344,7 @@ def _effect(t: _Table, d):
 
 
 def _prescribed(t: _Table, d):
-    """$q_k(t) = o_k + a_k \\sin(2\\pi f_k t + \\varphi_k)$, each field a scalar or a d-vector."""
+    r"""$q_k(t) = o_k + a_k \sin(2\pi f_k t + \varphi_k)$, each field a scalar or a d-vector."""
     amplitude = jnp.asarray(t.vector_or_scalar("amplitude", d))
     frequency = jnp.asarray(t.vector_or_scalar("frequency", d))
     phase = jnp.asarray(t.vector_or_scalar("phase", d, 0.0))
@@ -389,7 +392,7 @@ def _state(t: _Table, system, shape, t0):
 
 @dataclasses.dataclass(frozen=True)
 class SceneFile:
-    """A simulation read from a TOML scene file: everything `simulate` needs, and the outputs.
+    r"""A simulation read from a TOML scene file: everything `simulate` needs, and the outputs.
 
     Tables and fields (vectors are TOML lists; a shape vector may be one number, repeated):
 
@@ -403,14 +406,14 @@ class SceneFile:
       `radii` of a solid ellipsoid or `second_moment`), `"mjcf"` or `"urdf"` (`path`
       relative to the scene file, or `model` = a file in `bundledyn.models`).
     - `[[effects]]` `type` = `"gravity"` (`g`, `direction`, `gravitational_mass`,
-      `centre_offset`), `"gravity_gradient"` (`mu`, `centre`, `per_body`),
+      `centre_offset`), `"gravity_gradient"` (`mu`, `centre`, `per_body`: `BodywiseGravityGradient`),
       `"shape_spring"` (`stiffness`, `rest`) or `"shape_damper"` (`damping`).
     - `[shape]` `mode` = `"free"` (default) or `"prescribed"`:
-      $q(t) = o + a\\sin(2\\pi f t + \\varphi)$ from `offset`, `amplitude`, `frequency`, `phase`.
+      $q(t) = o + a\sin(2\pi f t + \varphi)$ from `offset`, `amplitude`, `frequency`, `phase`.
     - `[frame]` `type` = `"galilean"` (default), `"boosted"` (`velocity`) or
       `"free_falling"` (`g`, `direction`).
     - `[initial]` `position`, `rotation` (rotation vector), `q`, `qdot`, and `xi` (6 numbers,
-      angular first) or `"zero_momentum"` for $\\xi = -A(q)\\dot q$.
+      angular first) or `"zero_momentum"` for $\xi = -A(q)\dot q$.
     - `[time]` `t1` (required), `t0` (0), `saves` (saved times, evenly spaced; 101).
     - `[solver]` `method` (`RKMK87` default, `RKMK54`, `RKMK4`, `LieEuler`,
       `VariationalMidpoint`, `Tsit5`, `Dopri5`, `Dopri8`, `Kvaerno5`), `rtol`, `atol`,

@@ -9,30 +9,14 @@ import jax.numpy as jnp
 import jax.tree_util as jtu
 
 from . import lie
-from ._geometry import connection
 from ._precision import warn_if_tolerance_too_tight
-from ._scene import Prescribed, Scene, SceneTerm
+from ._scene import Scene
+from ._solver._base import AbstractLieGroupSolver
 from ._solver._rkmk import RKMK87, AbstractRKMK
 from ._solver._starting_step import starting_step
-from ._solver._variational import VariationalMidpoint
 from ._state import State
+from ._term import SceneTerm
 from ._trajectory import Trajectory
-
-
-def initial_condition(scene: Scene, state: State, t0):
-    """The integration state `y0 = (g, x)` of `state`, with $U = \\xi + A\\dot q$ (frame shift included)."""
-    system = scene.system
-    d = system.shape_dim
-    if isinstance(scene.shape, Prescribed):
-        q, qdot = scene.shape.at(jnp.asarray(t0, dtype=state.g.dtype))
-    elif state.q.shape != (d,):
-        raise ValueError(
-            f"`state.q` and `state.qdot` must have shape ({d},) for this system, got {state.q.shape}."
-        )
-    else:
-        q, qdot = state.q, state.qdot
-    U = state.xi + connection(system, q) @ qdot if d else state.xi
-    return state.g, scene.join(q, U, qdot)
 
 
 @jax.custom_jvp
@@ -94,10 +78,6 @@ def _interpolates(saveat: diffrax.SaveAt, event) -> bool:
     return saveat.dense or event is not None or any(s.ts is not None for s in subs)
 
 
-def _is_adaptive(solver) -> bool:
-    return isinstance(solver, diffrax.AbstractAdaptiveSolver) or getattr(solver, "adaptive", False)
-
-
 def simulate(
     scene: Scene,
     state0: State,
@@ -123,8 +103,8 @@ def simulate(
     - `scene`: the `Scene` (system, effects, shape mode, frame).
     - `state0`: the initial `State` (for a `Prescribed` shape, q and qdot are taken from it).
     - `t1`, `t0`: end and start times.
-    - `solver`: a Lie-group solver (`RKMK87` default, `RKMK54`, `RKMK4`, `LieEuler`,
-      `VariationalMidpoint`) or any diffrax solver, which then integrates the pose in its
+    - `solver`: a Lie-group solver (an `AbstractLieGroupSolver`: `RKMK87` default, `RKMK54`,
+      `RKMK4`, `LieEuler`, `VariationalMidpoint`) or any diffrax solver, which then integrates the pose in its
       4×4 embedding: there its rotation drifts off SO(3) by the solver's error, so the saved
       poses are projected back (`project_to_se3`) and the drift before projection is
       reported as `stats["embedding_drift"]`.
@@ -140,8 +120,7 @@ def simulate(
       controller above for adaptive solvers, `diffrax.ConstantStepSize()` for fixed-step
       ones. With `diffrax.ConstantStepSize()` and `dt0`, an adaptive solver takes fixed
       steps: a `vmap`ped batch then takes the same steps in every member, where adaptive
-      members run in lockstep until the one needing most steps is done (1 s rollouts of
-      1024 5-body chains at rtol 1e-7: 9.3 steps on average, 12 for all). An adaptive
+      members run in lockstep until the one needing most steps is done. An adaptive
       controller given without `dt0` starts at the step described under `dt0`, from its
       own `rtol` and `atol`.
     - `saveat`: a `diffrax.SaveAt`; default saves at `t0` and `t1`. When it saves only
@@ -161,21 +140,21 @@ def simulate(
     saveat = diffrax.SaveAt(t0=True, t1=True) if saveat is None else saveat
     if isinstance(solver, AbstractRKMK) and not _interpolates(saveat, event):
         solver = dataclasses.replace(solver, dense_output=False)
-    y0 = initial_condition(scene, state0, t0)
     term = SceneTerm(scene)
+    y0 = term.encode(t0, state0)
     if stepsize_controller is not None:
         controller = stepsize_controller
-    elif _is_adaptive(solver):
+    elif isinstance(solver, diffrax.AbstractAdaptiveSolver):
         # Gustafsson's PI controller (Hairer & Wanner, Solving ODEs II, §IV.2; diffrax's
-        # docstring lists it): diffrax's default I controller rejected a quarter of RKMK87's
-        # steps on the 5-body chain of `benchmarks/speed.py` (18 of 75 at rtol 1e-7).
+        # docstring lists it): diffrax's default I controller rejects far more of RKMK87's
+        # long steps.
         controller = diffrax.PIDController(rtol=rtol, atol=atol, pcoeff=0.4, icoeff=0.3)
     else:
         controller = diffrax.ConstantStepSize()
     adaptive = isinstance(controller, diffrax.AbstractAdaptiveStepSizeController)
     if adaptive:
         warn_if_tolerance_too_tight(controller.rtol, y0[0].dtype)
-    if dt0 is None and adaptive and _is_adaptive(solver):
+    if dt0 is None and adaptive and isinstance(solver, diffrax.AbstractAdaptiveSolver):
         h = starting_step(
             term,
             t0,
@@ -208,14 +187,12 @@ def simulate(
     )
     g, x = sol.ys
     stats = dict(sol.stats)
-    if not isinstance(solver, AbstractRKMK | VariationalMidpoint):
+    if not isinstance(solver, AbstractLieGroupSolver):
         stats["embedding_drift"] = _orthogonality_error(g)
         g = project_to_se3(g)
-    q, U, qdot = jax.vmap(scene.split)(sol.ts, x)
-    xi = jax.vmap(lambda q_, U_, qd: U_ - connection(scene.system, q_) @ qd if q_.shape[0] else U_)(
-        q, U, qdot
-    )
-    return Trajectory(sol.ts, g, q, xi, qdot, U, stats, sol.result, scene)
+    states = jax.vmap(term.decode)(sol.ts, (g, x))
+    U = jax.vmap(lambda t, y: term.unpack(t, y)[2])(sol.ts, (g, x))
+    return Trajectory(sol.ts, g, states.q, states.xi, states.qdot, U, stats, sol.result, scene)
 
 
 simulate = eqx.filter_jit(simulate)

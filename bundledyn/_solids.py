@@ -34,7 +34,7 @@ class AbstractSolid(eqx.Module):
         """Points of its surface in its own frame, shape `(rows, columns, 3)` (a mesh grid)."""
 
     def rigid_body(self, mass, com=(0.0, 0.0, 0.0)) -> RigidBody:
-        """The `RigidBody` of this solid with mass `mass`, its centre at `com` in the body frame.
+        r"""The `RigidBody` of this solid with mass `mass`, its centre at `com` in the body frame.
 
         **Arguments:**
 
@@ -43,7 +43,7 @@ class AbstractSolid(eqx.Module):
 
         **Returns:**
 
-        A `RigidBody` with inertia $\\operatorname{diag}(I_1, I_2, I_3)$ about `com`.
+        A `RigidBody` with inertia $\operatorname{diag}(I_1, I_2, I_3)$ about `com`.
         """
         return RigidBody(mass, com, jnp.diag(self.principal_moments(jnp.asarray(mass, float))))
 
@@ -116,9 +116,9 @@ class Ellipsoid(AbstractSolid):
 
 
 class Capsule(AbstractSolid):
-    """A solid capsule along x: a cylinder of radius $r$ and length $l$ with hemispherical caps.
+    r"""A solid capsule along x: a cylinder of radius $r$ and length $l$ with hemispherical caps.
 
-    With $m_c = m\\,l/(l + 4r/3)$ in the cylinder and $m_s = m - m_c$ in the caps,
+    With $m_c = m\,l/(l + 4r/3)$ in the cylinder and $m_s = m - m_c$ in the caps,
     $I_x = m_c r^2/2 + 2 m_s r^2/5$ and
     $I_y = I_z = m_c(l^2/12 + r^2/4) + m_s(2r^2/5 + l^2/4 + 3lr/8)$ (each cap's centre of mass
     lies $3r/8$ from its flat face).

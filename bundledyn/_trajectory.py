@@ -8,17 +8,18 @@ from jaxtyping import Array, Float
 from . import lie
 from ._geometry import kinetic_energy
 from ._scene import Scene
+from ._term import SceneTerm
 
 
 class Trajectory(eqx.Module):
-    """States at the saved times, in the scene's frame, with diagnostics.
+    r"""States at the saved times, in the scene's frame, with diagnostics.
 
     Arrays carry a leading time axis; with `SaveAt(t1=True)` (or any save including
     `t1`), the last entry is the state at `t1`. Entries past the last step of a
     `SaveAt(steps=True)` solve are padded with `inf`, as diffrax does.
 
     **Fields:** `ts` `(n,)`, `g` `(n, 4, 4)` (section frame pose), `q`, `qdot` `(n, d)`,
-    `xi` `(n, 6)` ($g^{-1}\\dot g$), `U` `(n, 6)` (locked velocity), `stats` (diffrax's solver
+    `xi` `(n, 6)` ($g^{-1}\dot g$), `U` `(n, 6)` (locked velocity), `stats` (diffrax's solver
     statistics: steps, accepted and rejected steps, vector-field evaluations), `result`
     (diffrax's result code), `scene`.
     """
@@ -34,8 +35,10 @@ class Trajectory(eqx.Module):
     scene: Scene
 
     def _kinematics(self):
+        term = SceneTerm(self.scene)
+
         def one(t, g, q, U, qdot):
-            return self.scene.kinematics(t, (g, self.scene.join(q, U, qdot)))
+            return term.kinematics(t, term.pack(g, q, U, qdot))
 
         return jax.vmap(one)(self.ts, self.g, self.q, self.U, self.qdot)
 
@@ -43,7 +46,7 @@ class Trajectory(eqx.Module):
     # of a 5-body chain compiled one kernel at a time (about 400, 9 s in all).
     @eqx.filter_jit
     def energy(self) -> Float[Array, " n"]:
-        """Total energy in the Galilean frame: $T$ of (2.1) plus every conservative effect's $\\Pi$."""
+        r"""Total energy in the Galilean frame: $T$ of (2.1) plus every conservative effect's $\Pi$."""
         scene = self.scene
 
         def one(kin):
@@ -58,9 +61,9 @@ class Trajectory(eqx.Module):
 
     @eqx.filter_jit
     def spatial_momentum(self) -> Float[Array, "n 6"]:
-        """The momentum $\\operatorname{Ad}^*_g I_r U$ in the Galilean frame (about its origin).
+        r"""The momentum $\operatorname{Ad}^*_g I_r U$ in the Galilean frame (about its origin).
 
-        Conserved when no external force acts (seed 004, (2.6) with $\\mathbf F = 0$).
+        Conserved when no external force acts (seed 004, (2.6) with $\mathbf F = 0$).
         """
         system = self.scene.system
 
@@ -73,6 +76,6 @@ class Trajectory(eqx.Module):
 
     @eqx.filter_jit
     def orthogonality_error(self) -> Float[Array, " n"]:
-        """$\\max_{ij}|R^TR - 1|$ of the section frame's rotation at every saved time."""
+        r"""$\max_{ij}|R^TR - 1|$ of the section frame's rotation at every saved time."""
         R = self.g[:, :3, :3]
         return jnp.max(jnp.abs(jnp.swapaxes(R, -1, -2) @ R - jnp.eye(3)), axis=(-1, -2))

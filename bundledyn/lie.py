@@ -26,6 +26,7 @@ from ._lie._rotations import (
     euler_parameters_from_rotation,
     krylov_angles_from_rotation,
     quaternion_from_rotation,
+    quaternion_from_rotation_vector,
     rotation_from_axis_angle,
     rotation_from_bryant_angles,
     rotation_from_euler_angles,
@@ -34,6 +35,7 @@ from ._lie._rotations import (
     rotation_from_quaternion,
     rotation_from_unit_vector_and_angle,
     rotation_from_vector_parameter,
+    rotation_vector_from_quaternion,
     rotation_x,
     rotation_y,
     rotation_z,
@@ -134,4 +136,6 @@ __all__ = [
     "krylov_angles_from_rotation",
     "rotation_from_quaternion",
     "quaternion_from_rotation",
+    "rotation_vector_from_quaternion",
+    "quaternion_from_rotation_vector",
 ]

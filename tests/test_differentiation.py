@@ -10,8 +10,6 @@ import numpy as np
 from systems import affine_body, chain, chain3_state
 
 import bundledyn as bd
-from bundledyn._scene import SceneTerm
-from bundledyn._simulate import initial_condition
 
 THREE = chain(3)
 THREE_STATE = chain3_state()
@@ -122,7 +120,7 @@ def test_gradient_of_the_affine_body_field_at_its_undeformed_shape():
     g0 = jnp.eye(4)
 
     def loss(x):
-        return jnp.sin(jnp.arange(1.0, 19.0)) @ scene.vector_field(0.0, (g0, x))[1]
+        return jnp.sin(jnp.arange(1.0, 19.0)) @ bd.SceneTerm(scene).vf(0.0, (g0, x), None)[1]
 
     x0 = jnp.concatenate(
         [jnp.zeros(6), jnp.array([0.3, -0.2, 0.5, 0.1, 0.0, 0.2]), jnp.cos(jnp.arange(6.0))]
@@ -157,10 +155,8 @@ def test_second_derivatives_of_a_solver_step_at_the_undeformed_shape():
     `lax.scan`, JAX drops custom JVP rules (see `stretch_derivatives`)."""
     scene = bd.Scene(affine_body())
     xi = jnp.array([0.3, -0.2, 0.1, 0.5, 0.0, 0.2])
-    g0, x0 = initial_condition(
-        scene, bd.State(jnp.eye(4), jnp.zeros(6), xi, 0.1 * jnp.ones(6)), 0.0
-    )
-    term, solver = SceneTerm(scene), bd.LieEuler()
+    term, solver = bd.SceneTerm(scene), bd.LieEuler()
+    g0, x0 = term.encode(0.0, bd.State(jnp.eye(4), jnp.zeros(6), xi, 0.1 * jnp.ones(6)))
 
     def step(q):
         (g1, x1), *_ = solver.step(term, 0.0, 0.05, (g0, x0.at[:6].set(q)), None, None, False)

@@ -29,11 +29,11 @@ def _frame_terms(system, g, q, U, qdot, velocity):
     """Boosted-frame minus Galilean-frame accelerations from the scenes' vector fields, and
     the prediction of (2.9)–(2.10) from the checks, at the velocities `velocity` (batch)."""
     galilean = bd.Scene(system)
-    x = galilean.join(q, U, qdot)
+    y = bd.SceneTerm(galilean).pack(g, q, U, qdot)
     d = system.shape_dim
 
     def accelerations(scene):
-        xdot = scene.vector_field(jnp.zeros(()), (g, x))[1]
+        xdot = bd.SceneTerm(scene).vf(jnp.zeros(()), y, None)[1]
         return (xdot[d : d + 6], xdot[d + 6 :]) if d else (xdot, xdot[:0])
 
     base = accelerations(galilean)

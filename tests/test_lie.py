@@ -507,6 +507,18 @@ FUNCS = {
         (0.0, 1e-9, 1.3, 2.5, PI - 1e-3),
         "identity3",
     ),
+    "rotation_vector_from_quaternion": (
+        lie.rotation_vector_from_quaternion,
+        _pts_quat,
+        (0.0, 1e-9, 0.05, 1.3, 2.5),
+        "quat1",
+    ),
+    "quaternion_from_rotation_vector": (
+        lie.quaternion_from_rotation_vector,
+        _pts_w,
+        EXP_THETAS,
+        "zero",
+    ),
     "rotation_from_axis_angle": (
         lambda z: lie.rotation_from_axis_angle(z[..., :3], z[..., 3]),
         _pts_axis_angle,

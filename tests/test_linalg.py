@@ -19,7 +19,6 @@ from bundledyn._linalg import (
     spd_solve,
     take,
 )
-from bundledyn._simulate import initial_condition
 from bundledyn._systems._rigid_body import spatial_inertia
 
 
@@ -234,8 +233,9 @@ def test_tree_field_reverse_mode_has_no_scatter(name):
     scene = bd.Scene(SYSTEMS[name]())
     d = scene.system.shape_dim
     state = bd.State(jnp.eye(4), 0.1 * jnp.ones(d), 0.2 * jnp.ones(6), 0.3 * jnp.ones(d))
-    y = initial_condition(scene, state, 0.0)
-    vjp = lambda y: jax.vjp(lambda y: scene.vector_field(0.0, y, None), y)[1](y)  # noqa: E731
+    term = bd.SceneTerm(scene)
+    y = term.encode(0.0, state)
+    vjp = lambda y: jax.vjp(lambda y: term.vf(0.0, y, None), y)[1](y)  # noqa: E731
     assert "scatter" not in str(jax.make_jaxpr(vjp)(y))
 
 

@@ -19,21 +19,34 @@ mujoco = pytest.importorskip("mujoco")
 
 import bundledyn  # noqa: E402
 from bundledyn import Multibody  # noqa: E402
-from bundledyn._systems._mujoco import (  # noqa: E402
-    _quaternion_from_rotation_vector,
-    _rotation_vector_from_quaternion,
-    mujoco_from_state,
-    multibody_from_mjcf,
-    multibody_from_urdf,
-    state_from_mujoco,
+from bundledyn.lie import (  # noqa: E402
+    quaternion_from_rotation_vector as _quaternion_from_rotation_vector,
+    rotation_vector_from_quaternion as _rotation_vector_from_quaternion,
 )
+
+multibody_from_mjcf = Multibody.from_mjcf
+multibody_from_urdf = Multibody.from_urdf
 
 FREE, BALL, SLIDE, HINGE = 0, 1, 2, 3  # mjtJoint
 MODELS = pathlib.Path(bundledyn.__file__).parent / "models"
 
 # Jitted once for the whole module; the system is a pytree argument.
-to_state = jax.jit(state_from_mujoco, static_argnames=("free_root",))
-to_mujoco = jax.jit(mujoco_from_state, static_argnames=("free_root",))
+
+
+def _state_parts(system, qpos, qvel, *, qpos0=None, free_root=True, root_pose=None):
+    state = bundledyn.state_from_mujoco(
+        system, qpos, qvel, qpos0=qpos0, free_root=free_root, root_pose=root_pose
+    )
+    return state.g, state.q, state.xi, state.qdot
+
+
+def _from_parts(system, g, q, xi, qdot, *, qpos0=None, free_root=True):
+    state = bundledyn.State(g, q, xi, qdot)
+    return bundledyn.state_to_mujoco(system, state, qpos0=qpos0, free_root=free_root)
+
+
+to_state = jax.jit(_state_parts, static_argnames=("free_root",))
+to_mujoco = jax.jit(_from_parts, static_argnames=("free_root",))
 body_poses = jax.jit(lambda system, q: system.body_poses(q))
 
 
@@ -329,7 +342,7 @@ def test_round_trip_from_state(chain):
     g = bundledyn.lie.se3_exp(rng.normal(size=6))
     q = rng.normal(size=d)
     # ball coordinates inside the principal ball |φ| < π
-    kinds, starts = system._tables.kinds, system._tables.q_start
+    kinds, starts = system.tables.kinds, system.tables.q_start
     for kind, s in zip(kinds, starts, strict=True):
         if kind == "ball":
             q[s : s + 3] *= 2.0 / np.linalg.norm(q[s : s + 3])
@@ -349,8 +362,8 @@ def test_converters_jit_vmap_grad(chain):
     qvel = np.stack([b[1] for b in batch])
 
     def both_ways(qpos, qvel):
-        state = state_from_mujoco(system, qpos, qvel, qpos0=qpos0)
-        return state, mujoco_from_state(system, *state, qpos0=qpos0)
+        state = _state_parts(system, qpos, qvel, qpos0=qpos0)
+        return state, _from_parts(system, *state, qpos0=qpos0)
 
     state, (_, qvel2) = jax.jit(jax.vmap(both_ways))(qpos, qvel)
     for i in range(len(batch)):
@@ -363,9 +376,9 @@ def test_converters_jit_vmap_grad(chain):
     @jax.jit
     def derivatives(qpos, qvel):
         grads = jax.grad(lambda *a: sum(jnp.sum(x) for x in both_ways(*a)[0]), (0, 1))
-        state = state_from_mujoco(system, qpos, qvel, qpos0=qpos0)
+        state = _state_parts(system, qpos, qvel, qpos0=qpos0)
         tangents = tuple(jnp.ones_like(x) for x in state)
-        _, jvp = jax.jvp(lambda *s: mujoco_from_state(system, *s, qpos0=qpos0), state, tangents)
+        _, jvp = jax.jvp(lambda *s: _from_parts(system, *s, qpos0=qpos0), state, tangents)
         return grads(qpos, qvel), jvp
 
     out = derivatives(qpos0, qvel[0])

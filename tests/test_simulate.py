@@ -311,7 +311,7 @@ def test_gravity_gradient_torque_is_maccullagh():
     kin = bd.Kinematics(0.0, g, jnp.zeros(0), jnp.zeros(6), jnp.zeros(0))
     mu = 4.0e3
     F, _ = bd.GravityGradient(mu).generalized_force(body, kin)
-    F_per_body, _ = bd.GravityGradient(mu, per_body=True).generalized_force(one, kin)
+    F_per_body, _ = bd.BodywiseGravityGradient(mu).generalized_force(one, kin)
     np.testing.assert_allclose(F_per_body, F, rtol=1e-12)
     R, c = g[:3, :3], body.com
     rho = g[:3, 3] + R @ c

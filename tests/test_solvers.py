@@ -27,11 +27,10 @@ import pytest
 import scipy.integrate
 from traced import scan_lengths
 
-from bundledyn import lie
+from bundledyn import AbstractBodyTerm, lie
 from bundledyn._solver._interpolation import LieLocalInterpolation
 from bundledyn._solver._lie_euler import LieEuler
 from bundledyn._solver._rkmk import RKMK4, RKMK54, RKMK87
-from bundledyn._solver._state import AbstractBodyTerm
 from bundledyn._solver._tableau import (
     dopri5_tableau,
     dopri8_tableau,

@@ -61,43 +61,43 @@ class _TranslationalCurvatureEnergy(eqx.Module):
 
 
 def anisotropic_mass(masses=(1.0, 2.0, 3.0)) -> GenericSystem:
-    """A body whose translational mass depends on the direction: breaks (a) only.
+    r"""A body whose translational mass depends on the direction: breaks (a) only.
 
-    $T = \\tfrac12\\omega^T l\\,\\omega + \\tfrac12 v^T\\operatorname{diag}(m_1, m_2, m_3)v + \\tfrac12\\dot q^2$
+    $T = \tfrac12\omega^T l\,\omega + \tfrac12 v^T\operatorname{diag}(m_1, m_2, m_3)v + \tfrac12\dot q^2$
     in body axes. Its locked inertia is not of the rigid form of Lemma 1, so the inertial forces
-    of the frozen system are not objective: $\\mathbf C(U, X) \\ne 0$. One decoupled shape
+    of the frozen system are not objective: $\mathbf C(U, X) \ne 0$. One decoupled shape
     coordinate keeps (b) and (c) meaningful; they hold.
     """
     return GenericSystem(_AnisotropicMassEnergy(jnp.asarray(masses, dtype=float)), 1)
 
 
 def shape_dependent_mass(variation=0.5) -> GenericSystem:
-    """A rigid-form body whose mass changes with its shape: breaks (b) only (Lemma 2).
+    r"""A rigid-form body whose mass changes with its shape: breaks (b) only (Lemma 2).
 
-    $T = \\tfrac12\\omega^T l\\,\\omega + \\tfrac12 m(q)|v|^2 + \\tfrac12\\dot q^2$ with
-    $m(q) = 1 + \\text{variation}\\cdot\\tanh q$. The frozen system is a rigid body, but $m$ is
-    not constant on $\\mathbb S$.
+    $T = \tfrac12\omega^T l\,\omega + \tfrac12 m(q)|v|^2 + \tfrac12\dot q^2$ with
+    $m(q) = 1 + \text{variation}\cdot\tanh q$. The frozen system is a rigid body, but $m$ is
+    not constant on $\mathbb S$.
     """
     return GenericSystem(_ShapeDependentMassEnergy(jnp.asarray(variation, dtype=float)), 1)
 
 
 def drifting_centre(drift=(0.3, 0.1, 0.0)) -> GenericSystem:
-    """A rigid-form body whose centre of mass moves when the shape changes at zero momentum: breaks (b) only.
+    r"""A rigid-form body whose centre of mass moves when the shape changes at zero momentum: breaks (b) only.
 
-    $T = \\tfrac12\\omega^T l\\,\\omega + \\tfrac12|v + \\omega\\times c(q)|^2 + \\tfrac12\\dot q^2$ with
-    $c(q) = \\text{drift}\\cdot\\sin q$ and no shape–group coupling, so every shape change is
+    $T = \tfrac12\omega^T l\,\omega + \tfrac12|v + \omega\times c(q)|^2 + \tfrac12\dot q^2$ with
+    $c(q) = \text{drift}\cdot\sin q$ and no shape–group coupling, so every shape change is
     horizontal and carries $c_s$ along (property 2 of Theorem 2.3 fails).
     """
     return GenericSystem(_DriftingCentreEnergy(jnp.asarray(drift, dtype=float)), 1)
 
 
 def translational_curvature(strength=1.0) -> GenericSystem:
-    """A rigid-form body whose connection has a translational curvature: breaks (c), and (b) off $q = 0$.
+    r"""A rigid-form body whose connection has a translational curvature: breaks (c), and (b) off $q = 0$.
 
-    $T = \\tfrac12 U^T I U + \\tfrac12|\\dot q|^2$ with $U = \\xi + A(q)\\dot q$, $I$ a rigid
-    inertia with centre at the origin and $A(q)\\dot q = (0, \\tfrac k2(q_1\\dot q_2 - q_2\\dot
-    q_1)e_x)$: a small shape loop at zero momentum translates the body by $-k\\,e_x$ times its
-    area, so $\\Omega(e_1, e_2) = (0, k\\,e_x)\\notin\\mathfrak c_s$. See the module docstring for why
+    $T = \tfrac12 U^T I U + \tfrac12|\dot q|^2$ with $U = \xi + A(q)\dot q$, $I$ a rigid
+    inertia with centre at the origin and $A(q)\dot q = (0, \tfrac k2(q_1\dot q_2 - q_2\dot
+    q_1)e_x)$: a small shape loop at zero momentum translates the body by $-k\,e_x$ times its
+    area, so $\Omega(e_1, e_2) = (0, k\,e_x)\notin\mathfrak c_s$. See the module docstring for why
     (c) cannot fail alone on an open set.
     """
     return GenericSystem(_TranslationalCurvatureEnergy(jnp.asarray(strength, dtype=float)), 2)

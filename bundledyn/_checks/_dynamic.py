@@ -16,12 +16,12 @@ from .._systems._base import AbstractSystem
 
 
 class Discrepancy(eqx.Module):
-    """How far two simulations of one motion, seen from the same frame, end up apart.
+    r"""How far two simulations of one motion, seen from the same frame, end up apart.
 
     **Fields:**
 
     - `shape`: the largest $|q_1(t) - q_2(t)|$ over the saved times.
-    - `pose`: the largest $|\\log(g_1(t)^{-1} g_2(t))|$ over the saved times (rotation in
+    - `pose`: the largest $|\log(g_1(t)^{-1} g_2(t))|$ over the saved times (rotation in
       radians and translation in the system's length unit, in one twist norm).
     """
 
@@ -66,19 +66,19 @@ def boost_discrepancy(
     points: int = 11,
     **options,
 ) -> Discrepancy:
-    """Theorem 2.2 by simulation: a motion seen from a boosted frame against the same initial state in the Galilean frame.
+    r"""Theorem 2.2 by simulation: a motion seen from a boosted frame against the same initial state in the Galilean frame.
 
-    The frame $\\mathcal R'$ translates with constant `velocity` $u$, $M(t) = (1, tu)$. From
-    $\\mathcal R'$ the system starts in `state`; in $\\mathcal R$ that is the same pose with
-    velocity $\\mathbf V = u + \\mathbf W$. The true motion is integrated in $\\mathcal R$ and seen
-    from $\\mathcal R'$ by $M(t)^{-1}$; the Galilean equations (2.6) are integrated from `state`
-    as if $\\mathcal R'$ were the Galilean frame. The two agree to the solver's tolerance iff the
+    The frame $\mathcal R'$ translates with constant `velocity` $u$, $M(t) = (1, tu)$. From
+    $\mathcal R'$ the system starts in `state`; in $\mathcal R$ that is the same pose with
+    velocity $\mathbf V = u + \mathbf W$. The true motion is integrated in $\mathcal R$ and seen
+    from $\mathcal R'$ by $M(t)^{-1}$; the Galilean equations (2.6) are integrated from `state`
+    as if $\mathcal R'$ were the Galilean frame. The two agree to the solver's tolerance iff the
     frame terms of (2.9)–(2.10) vanish, i.e. under Theorem 2.2's conditions; otherwise they
     separate, more so the faster the boost (`boost_terms` gives the initial rate).
 
     **Arguments:**
 
-    - `system`: any system; `state`: the initial state seen from $\\mathcal R'$.
+    - `system`: any system; `state`: the initial state seen from $\mathcal R'$.
     - `velocity`: $u$, `(3,)`; `t1`: the duration.
     - `points`: number of equally spaced times compared (static).
     - `options`: passed to `simulate` (`solver`, `rtol`, `atol`, `max_steps`, ...).
@@ -99,9 +99,9 @@ def boost_discrepancy(
 def gravity_discrepancy(
     system: AbstractSystem, gravity: Gravity, state: State, t1, *, points: int = 11, **options
 ) -> Discrepancy:
-    """Theorem 3.4 by simulation: the motion under `gravity` seen from a freely falling frame against the motion without gravity.
+    r"""Theorem 3.4 by simulation: the motion under `gravity` seen from a freely falling frame against the motion without gravity.
 
-    The frame falls with $M(t) = \\exp(z(t)\\chi)$, $\\ddot z = g$, $z(0) = \\dot z(0) = 0$
+    The frame falls with $M(t) = \exp(z(t)\chi)$, $\ddot z = g$, $z(0) = \dot z(0) = 0$
     (`FreeFalling(gravity.g, gravity.direction)`). Under Theorem 2.2's conditions, and when
     the gravitational mass and centre equal the inertial ones, the two motions are the same
     (seed 004, §3). A `Gravity` with `gravitational_mass` or `centre_offset` set apart breaks

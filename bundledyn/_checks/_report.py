@@ -91,11 +91,11 @@ def _battery(system, shapes):
 def galilean_invariance(
     system: AbstractSystem, key, n: int = 256, *, shapes=None, scale: float = 1.0, tolerance=1e-10
 ) -> InvarianceReport:
-    """Check that `system` is an acceptable mechanical model: Theorems 2.2 and 2.3 on sampled shapes.
+    r"""Check that `system` is an acceptable mechanical model: Theorems 2.2 and 2.3 on sampled shapes.
 
-    Samples `n` shapes uniformly in $[-\\text{scale}, \\text{scale}]^d$ and evaluates
+    Samples `n` shapes uniformly in $[-\text{scale}, \text{scale}]^d$ and evaluates
     `galilean_conditions` and `rigid_structure` at all of them in one jitted, vmapped call.
-    The translations $U$, twists $X$ and shape directions $\\delta q$ the theorems quantify over
+    The translations $U$, twists $X$ and shape directions $\delta q$ the theorems quantify over
     enter through bases (the conditions are linear in each), so only shapes are sampled.
 
     **Arguments:**

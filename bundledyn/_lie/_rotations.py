@@ -38,15 +38,13 @@ __all__ = [
     "rotation_x",
     "rotation_y",
     "rotation_z",
+    "rotation_vector_from_quaternion",
+    "quaternion_from_rotation_vector",
 ]
 
 
 def _eye(batch, dtype):
     return jnp.broadcast_to(jnp.eye(3, dtype=dtype), batch + (3, 3))
-
-
-def _mv(A, x):
-    return jnp.einsum("...ij,...j->...i", A, x)
 
 
 # --- vector parameter (36)–(38) ----------------------------------------------------------
@@ -282,6 +280,69 @@ def quaternion_from_rotation(R):
     tk = jnp.sum(t * onehot, axis=-1)
     out = jnp.einsum("...ij,...j->...i", K, onehot) / (2.0 * jnp.sqrt(tk))[..., None]
     return jnp.where((out[..., :1] < 0.0), -out, out)
+
+
+_ATAN_SERIES = tuple(1.0 / (2 * k + 1) for k in range(12))  # atan(t)/t in powers of -t²
+
+
+def rotation_vector_from_quaternion(q):
+    r"""The rotation vector $\varphi$, $|\varphi| \le \pi$, of a quaternion $(w, x, y, z)$, unit or not.
+
+    $\varphi = 2\operatorname{atan2}(|u|, w)\,u/|u|$ after flipping the sign so that
+    $w \ge 0$: the same as `so3_log(rotation_from_quaternion(q))`, without the matrix.
+    Near the identity ($|u|^2 < 10^{-2} w^2$) the factor $\arctan(|u|/w)/|u|$ is its
+    series in $|u|^2/w^2$, so values and derivatives are exact at $\varphi = 0$.
+
+    **Arguments:**
+
+    - `q`: quaternion, scalar part first, shape `(..., 4)`.
+
+    **Returns:**
+
+    The rotation vector, shape `(..., 3)`.
+    """
+    q = _float(q)
+    q = jnp.where(q[..., :1] < 0, -q, q)
+    w, u = q[..., 0], q[..., 1:]
+    x2 = jnp.sum(u * u, axis=-1)
+    small = x2 < 1e-2 * w * w
+    w_small = jnp.where(small, w, 1.0)
+    y = jnp.where(small, x2, 0.0) / (w_small * w_small)
+    series = _ATAN_SERIES[-1]
+    for c in reversed(_ATAN_SERIES[:-1]):
+        series = c - y * series
+    f_small = series / w_small
+    x2_gen = jnp.where(small, 1.0, x2)
+    n = jnp.sqrt(x2_gen)
+    f_gen = jnp.arctan2(n, jnp.where(small, 0.0, w)) / n
+    return (2.0 * jnp.where(small, f_small, f_gen))[..., None] * u
+
+
+def quaternion_from_rotation_vector(phi):
+    r"""The unit quaternion $(\cos\frac\theta2, \sin\frac\theta2\,\varphi/\theta)$, $\theta = |\varphi|$, of a rotation vector.
+
+    A Taylor branch at $\theta = 0$ keeps values and derivatives exact there.
+
+    **Arguments:**
+
+    - `phi`: rotation vector, shape `(..., 3)`.
+
+    **Returns:**
+
+    Quaternion, scalar part first, shape `(..., 4)`.
+    """
+    phi = _float(phi)
+    x = jnp.sum(phi * phi, axis=-1)
+    small = x < 1e-4
+    xs = jnp.where(small, 1.0, x)
+    theta = jnp.sqrt(xs)
+    half_sinc = jnp.where(
+        small,
+        0.5 - x / 48.0 + x * x / 3840.0 - x**3 / 645120.0,
+        jnp.sin(0.5 * theta) / theta,
+    )
+    w = jnp.where(small, 1.0 - x / 8.0 + x * x / 384.0 - x**3 / 46080.0, jnp.cos(0.5 * theta))
+    return jnp.concatenate([w[..., None], half_sinc[..., None] * phi], axis=-1)
 
 
 def rotation_from_euler_parameters(q0, q):

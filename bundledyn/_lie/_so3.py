@@ -83,22 +83,6 @@ def _coefficients(x, names):
     return tuple(jnp.where(small, _horner(_SERIES[n], xs), closed[n]()) for n in names)
 
 
-def _coef_a(x):
-    return _coefficients(x, "a")[0]
-
-
-def _coef_b(x):
-    return _coefficients(x, "b")[0]
-
-
-def _coef_c(x):
-    return _coefficients(x, "c")[0]
-
-
-def _coef_d(x):
-    return _coefficients(x, "d")[0]
-
-
 def _float(x):
     x = jnp.asarray(x)
     if not jnp.issubdtype(x.dtype, jnp.inexact):

@@ -5,7 +5,8 @@ import jax.tree_util as jtu
 from diffrax import AbstractLocalInterpolation
 from jaxtyping import Array, PyTree
 
-from ._state import from_chart, split
+from .._term import split
+from ._chart import from_chart
 
 __all__ = ["LieLocalInterpolation"]
 

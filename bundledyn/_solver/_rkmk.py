@@ -30,11 +30,14 @@ import jax
 import jax.lax as lax
 import jax.numpy as jnp
 import jax.tree_util as jtu
-from diffrax import RESULTS, AbstractAdaptiveSolver, AbstractSolver, AbstractTerm
+from diffrax import RESULTS, AbstractAdaptiveSolver, AbstractTerm
 
 from .. import lie
+from .._linalg import dot
+from .._term import split
+from ._base import AbstractLieGroupSolver
+from ._chart import body_field, from_chart
 from ._interpolation import LieLocalInterpolation
-from ._state import body_field, from_chart, matmul, split
 from ._tableau import LieButcherTableau, dopri5_tableau, dopri8_tableau, rk4_tableau
 
 __all__ = ["AbstractRKMK", "RKMK4", "RKMK54", "RKMK87"]
@@ -48,48 +51,41 @@ def _combine(w, stack):
 
     The stage axis is the stacks' last: under `vmap` the batch comes first, and a
     contraction over a leading stage axis made XLA's CPU copy the whole stack to bring that
-    axis forward before every stage. 1024 vmapped 5-body chains, alternating in one process:
-    RKMK87 steps 8 % and 1 s rollouts 6 % faster this way; single steps unchanged.
+    axis forward before every stage.
     """
     out = jnp.tensordot(stack, w.astype(stack.dtype), axes=([-1], [-1]), precision=_HIGHEST)
     return out if w.ndim == 1 else jnp.moveaxis(out, -1, 0)
 
 
-class AbstractRKMK(AbstractSolver):
+class AbstractRKMK(AbstractLieGroupSolver):
     r"""Explicit Runge–Kutta–Munthe-Kaas method given by a Butcher tableau.
 
-    Subclasses set the class attribute `tableau` (a `LieButcherTableau`) and `order`.
+    Subclass it with a `LieButcherTableau` as the class attribute `tableau`, an `order`
+    method and a `dense_output` field to get a Lie-group solver of your own tableau (add
+    `diffrax.AbstractAdaptiveSolver` as a base when the tableau has an error estimate).
     States are pytrees whose first leaf is a $4\times4$ SE(3) pose and whose other leaves
-    are Euclidean, e.g. `y = (g, x)`; the term is an ordinary `diffrax.ODETerm` whose
-    vector field returns $(\dot g, \dot x)$ with $\dot g = g\hat\xi$ (the field in the
-    embedding, which stock diffrax solvers can integrate too), or an `AbstractBodyTerm`,
-    which gives $\xi$ directly (see `_state.body_field`).
+    are Euclidean, e.g. `y = (g, x)`; the term is an `AbstractBodyTerm`, which gives the
+    pose's rate as its body twist $\xi$, or any diffrax term whose vector field returns
+    $(\dot g, \dot x)$ with $\dot g = g\hat\xi$ (the twist is then read off $\dot g$).
 
-    - If the tableau has an embedded pair, the step returns the error estimate
+    - With an embedded pair, the step's error estimate is
       `y_error` $= \big((\Omega - \hat\Omega)^\wedge,\ x_1 - \hat x_1\big)$: a Lie-algebra
       increment (never a difference of matrices) arranged as a $4\times4$ so that the
       pytree matches `y`. `diffrax.PIDController` divides it elementwise by
       `atol + rtol * |g|`: for the rotation block this is a tolerance on angles (radians,
       entered twice, as $\pm\omega_k$), for the translation column a tolerance on lengths
       (the body-frame translation increment); the bottom row and the diagonal are zero.
-    - Every stage is evaluated, FSAL tableaus included, inside one `lax.scan`, so the
-      vector field is traced once. Reusing an FSAL tableau's last stage needs a `lax.cond`
-      (or a second trace of the field outside the loop): on XLA's CPU the first cost more
-      per step than the evaluation it saves, the second nearly doubled the compile time of
-      `jax.grad` through `simulate` (5-body chain: 48 s against 27 s).
+    - Every stage is evaluated inside one `lax.scan`, FSAL tableaus included, so the
+      vector field is traced once; reusing an FSAL stage would need a `lax.cond` or a
+      second trace of the field, each dearer on the CPU than the evaluation it saves.
     - Under reverse-mode differentiation each stage is recomputed (`jax.checkpoint`)
-      rather than its intermediates stored: stacking every intermediate of the field over
-      the stages cost more than evaluating the field again. `jax.grad` of a 10 s rollout of
-      the 5-body chain of `benchmarks/speed.py`, alternating in one process: 298 ms against
-      451 ms (medians of 7); compiling it for the 20-body chain 32–40 s against 37–44 s;
-      forward solves and `vmap`ped batches as fast as before.
+      rather than the field's intermediates stored over the stages, which cost more.
     - Dense output: `LieLocalInterpolation`, the tableau's continuous extension in the
       chart $g_0\exp\hat\Theta$, which stays on the group. With `dense_output=False` a
       step evaluates only the stages that the solution and the error estimate use
-      (`RKMK87`: 13 of its 14; the other tableaus use all their stages) and its dense
-      output is NaN: `bundledyn.simulate` sets it when nothing interpolates (no
-      `SaveAt(ts=...)`, no `SaveAt(dense=True)`, no event). The saved states are the same
-      either way.
+      (`RKMK87`: 13 of its 14) and its dense output is NaN: `bundledyn.simulate` sets it
+      when nothing interpolates (no `SaveAt(ts=...)`, no `SaveAt(dense=True)`, no event).
+      The saved states are the same either way.
 
     Valid while the rotation part of the algebra increments stays below $2\pi$
     (where $\mathrm{dexp}^{-1}$ is singular); an adaptive controller keeps it far below.
@@ -122,7 +118,7 @@ class AbstractRKMK(AbstractSolver):
             deltas = [_combine(a[i], k) for k in ks]
             yi = from_chart(g0, rest0, treedef, omega, deltas)
             eta, *kx = jtu.tree_leaves(body_field(terms, t0 + c[i] * (t1 - t0), yi, args, control))
-            kappa = matmul(lie.se3_dexp_inv(omega), eta.astype(omega.dtype))
+            kappa = dot(lie.se3_dexp_inv(omega), eta.astype(omega.dtype))
             kappas = kappas.at[..., i].set(kappa)
             ks = [k.at[..., i].set(kxi.astype(k.dtype)) for k, kxi in zip(ks, kx, strict=True)]
             return (kappas, ks), None
@@ -251,27 +247,18 @@ class RKMK87(AbstractRKMK, AbstractAdaptiveSolver):
 
     The default of `bundledyn.simulate`. Eighth order, with an embedded seventh-order error
     estimate measured in the Lie algebra (see `AbstractRKMK`), so it works with
-    `diffrax.PIDController`. A step costs 14 field evaluations, twice `RKMK54`'s 7 (the
-    13 stages of the method and the FSAL stage, all evaluated every step, see
-    `AbstractRKMK`), or 13 with `dense_output=False` (the FSAL stage serves only the dense
-    output, which `simulate` skips when nothing interpolates), but at tight tolerances it
-    takes far fewer steps, so it needs fewer evaluations per unit accuracy. On the two
-    problems of `tests/test_solvers.py` at rtol = atol = 1e-10: 13-16 accepted steps
-    (210-252 evaluations) against 74-81 (532-588), with a global error of 1.6e-10 against
-    8e-10 to 1e-9; at 1e-6 both cost 105-126 evaluations, RKMK87 with an error 8x smaller.
-    At `simulate`'s default rtol = atol = 1e-8 it is faster and more accurate than `RKMK54`
-    on the 5-body chain of `benchmarks/speed.py` and on the Dzhanibekov body, there also
-    between steps (`tests/test_simulate.py`), and its tableau on the embedding
-    (`diffrax.Dopri8`) is faster than RKMK54 on every problem of
-    `benchmarks/accuracy_cost.py`: hence the default.
+    `diffrax.PIDController`. A step costs 14 field evaluations, twice `RKMK54`'s 7, or 13
+    with `dense_output=False` (the FSAL stage serves only the dense output, which
+    `simulate` skips when nothing interpolates), but at tight tolerances it takes far
+    fewer steps: from about rtol 1e-6 down it needs fewer evaluations per unit accuracy,
+    which is why it is the default (`benchmarks/` measures the crossover).
 
     Dense output: the sextic of `diffrax.Dopri8` (which cites Bogacki & Shampine 1990),
     built on the 14 stages without extra ones, in the algebra chart, so it stays on the
     group. Between the step's ends it is of fifth order only (diffrax's docstring says
     eighth), so with the long steps this method takes `SaveAt(ts=...)`, `sol.evaluate`
-    and events are less accurate than the steps: at rtol 1e-12 on the problems above,
-    1e-10 to 3e-10 at `SaveAt(ts)` against 1.5e-12 at the steps (`diffrax.Dopri8` alike).
-    Save at the steps (`SaveAt(steps=True)`, or `t1`) where that matters.
+    and events are less accurate than the steps (`diffrax.Dopri8` alike). Save at the
+    steps (`SaveAt(steps=True)`, or `t1`) where that matters.
 
     ??? cite "References"
 

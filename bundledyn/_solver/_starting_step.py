@@ -7,7 +7,8 @@ import jax.tree_util as jtu
 import optimistix as optx
 
 from .. import lie
-from ._state import body_field, from_chart, split
+from .._term import split
+from ._chart import body_field, from_chart
 
 __all__ = ["starting_step"]
 
@@ -22,8 +23,8 @@ def starting_step(term, t0, y0, args, *, error_order, rtol, atol):
     r"""Initial step size of an adaptive solve of `term` from `y0`, in the solvers' chart.
 
     The algorithm of Hairer, Nørsett & Wanner (Solving ODEs I, §II.4), with the pose's
-    rate read as its body twist $\xi$ (`_state.body_field`) and the Euler step taken in the
-    chart $(g_0\exp\hat\Omega,\ x_0 + \delta)$ of `_state.py`, so that it stays on the
+    rate read as its body twist $\xi$ (`_chart.body_field`) and the Euler step taken in the
+    chart $(g_0\exp\hat\Omega,\ x_0 + \delta)$ of `_chart.py`, so that it stays on the
     group:
     $d_0 = \|y_0\|$, $d_1 = \|f_0\|$, $h_0 = 0.01\,d_0/d_1$,
     $y_1 = (g_0\exp(h_0\hat\xi_0),\ x_0 + h_0\dot x_0)$, $d_2 = \|f_1 - f_0\|/h_0$,

@@ -5,40 +5,42 @@ from typing import ClassVar
 import equinox as eqx
 import jax
 import jax.numpy as jnp
-from diffrax import RESULTS, AbstractSolver
+from diffrax import RESULTS
 
 from .. import lie
 from .._effects import Kinematics
-from .._scene import Free, SceneTerm
+from .._scene import Free
+from .._term import SceneTerm
+from ._base import AbstractLieGroupSolver
 from ._interpolation import LieLocalInterpolation
 
 
-def _scene_of(terms):
-    """The scene inside the (possibly diffrax-wrapped) `SceneTerm`."""
+def _scene_term(terms) -> SceneTerm:
+    """The `SceneTerm` inside the wrapper that `diffeqsolve` puts around every term."""
     while not isinstance(terms, SceneTerm):
         terms = terms.term
-    return terms.scene
+    return terms
 
 
-class VariationalMidpoint(AbstractSolver):
-    """A Lie-group variational integrator (fixed step): symplectic and momentum-preserving.
+class VariationalMidpoint(AbstractLieGroupSolver):
+    r"""A Lie-group variational integrator (fixed step): symplectic and momentum-preserving.
 
     The discrete Lagrangian of one step $h$ takes the midpoint shape and the exponential
-    increment $g_{k+1} = g_k\\exp\\hat\\Omega_k$ (cf. seed 004, (2.1)):
-    $\\ell_d(\\Omega, q_k, q_{k+1}) = \\tfrac h2 v^T G(\\bar q) v$, $v = [\\Omega/h; (q_{k+1}-q_k)/h]$,
-    $\\bar q = (q_k + q_{k+1})/2$. Varying $g_k = g_k\\exp\\hat\\eta_k$ and $q_k$ (discrete
+    increment $g_{k+1} = g_k\exp\hat\Omega_k$ (cf. seed 004, (2.1)):
+    $\ell_d(\Omega, q_k, q_{k+1}) = \tfrac h2 v^T G(\bar q) v$, $v = [\Omega/h; (q_{k+1}-q_k)/h]$,
+    $\bar q = (q_k + q_{k+1})/2$. Varying $g_k = g_k\exp\hat\eta_k$ and $q_k$ (discrete
     Lagrange–d'Alembert with the scene's forces $F_b, Q_H$ applied at the nodes) gives,
-    with $\\mu_k = \\operatorname{dexp}^{-1}(\\Omega_k)^T\\partial_\\Omega\\ell_d$,
+    with $\mu_k = \operatorname{dexp}^{-1}(\Omega_k)^T\partial_\Omega\ell_d$,
 
-    $$\\operatorname{dexp}^{-1}(-\\Omega_k)^T \\partial_\\Omega\\ell_d = m_k + hF_k,\\qquad
-      D_1\\ell_d + \\pi_k + hQ_k = 0,$$
-    $$m_{k+1} = \\mu_k,\\qquad \\pi_{k+1} = D_2\\ell_d,$$
+    $$\operatorname{dexp}^{-1}(-\Omega_k)^T \partial_\Omega\ell_d = m_k + hF_k,\qquad
+      D_1\ell_d + \pi_k + hQ_k = 0,$$
+    $$m_{k+1} = \mu_k,\qquad \pi_{k+1} = D_2\ell_d,$$
 
-    the discrete analogue of $\\dot p = \\operatorname{ad}_\\xi^T p + F_b$ and of the shape
-    equation. With no forces the spatial momentum $\\operatorname{Ad}^*_{g_k} m_k$ is conserved
+    the discrete analogue of $\dot p = \operatorname{ad}_\xi^T p + F_b$ and of the shape
+    equation. With no forces the spatial momentum $\operatorname{Ad}^*_{g_k} m_k$ is conserved
     exactly and the map is symplectic, so the energy error stays bounded instead of
-    drifting. Each step solves for $(\\Omega_k, q_{k+1})$ by a simplified Newton iteration
-    whose Jacobian is $h^{-1}\\operatorname{diag}(1, -1)\\,G(\\bar q)$ (exact to $O(h)$, so
+    drifting. Each step solves for $(\Omega_k, q_{k+1})$ by a simplified Newton iteration
+    whose Jacobian is $h^{-1}\operatorname{diag}(1, -1)\,G(\bar q)$ (exact to $O(h)$, so
     each iteration gains a factor $O(h)$). Second order.
 
     Scenes in the Galilean frame with a free shape (or a single rigid body); any effects.
@@ -60,7 +62,7 @@ class VariationalMidpoint(AbstractSolver):
         return 2
 
     def init(self, terms, t0, t1, y0, args):
-        scene = _scene_of(terms)
+        scene = _scene_term(terms).scene
         if scene.frame is not None or not isinstance(scene.shape, Free):
             raise ValueError(
                 "VariationalMidpoint integrates scenes in the Galilean frame with a free shape; "
@@ -72,12 +74,11 @@ class VariationalMidpoint(AbstractSolver):
         return terms.vf(t0, y0, args)
 
     def step(self, terms, t0, t1, y0, args, solver_state, made_jump):
-        scene = _scene_of(terms)
-        system = scene.system
+        term = _scene_term(terms)
+        scene, system = term.scene, term.scene.system
         d = system.shape_dim
         h = t1 - t0
-        g0, x0 = y0
-        q0, U0, qdot0 = scene.split(t0, x0)
+        g0, q0, U0, qdot0 = term.unpack(t0, y0)
         G0 = system.metric(q0)
         xi0 = U0 - jnp.linalg.solve(G0[:6, :6], G0[:6, 6:]) @ qdot0 if d else U0
         p0 = G0 @ jnp.concatenate([xi0, qdot0])
@@ -116,11 +117,10 @@ class VariationalMidpoint(AbstractSolver):
         G1 = system.metric(q1)
         v1 = jnp.linalg.solve(G1, jnp.concatenate([m1, pi1]))
         U1 = jnp.linalg.solve(G1[:6, :6], m1)
-        g1 = g0 @ lie.se3_exp(Omega)
-        x1 = scene.join(q1, U1, v1[6:])
+        y1 = term.pack(g0 @ lie.se3_exp(Omega), q1, U1, v1[6:])
         error = jnp.max(jnp.abs(residual(z))) / (jnp.max(jnp.abs(p0)) + jnp.finfo(p0.dtype).tiny)
         result = RESULTS.where(
             error < self.tolerance, RESULTS.successful, RESULTS.nonlinear_divergence
         )
-        dense_info = dict(y0=y0, coeffs=(Omega[None], (x1 - x0)[None]))
-        return (g1, x1), None, dense_info, None, result
+        dense_info = dict(y0=y0, coeffs=(Omega[None], (y1[1] - y0[1])[None]))
+        return y1, None, dense_info, None, result

@@ -2,6 +2,7 @@
 
 import itertools
 
+import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -10,7 +11,8 @@ from jaxtyping import Array, Float
 from .. import lie
 from .._linalg import expm
 from ._base import AbstractSystem
-from ._validation import check_mass, check_shape, check_spd
+from ._metric_jet import DenseMetricJet
+from ._validation import check_mass, check_shape, check_spd, checked_mass, checked_spd
 
 _SYM_ROWS = (0, 1, 2, 0, 0, 1)
 _SYM_COLS = (0, 1, 2, 1, 2, 2)
@@ -25,30 +27,29 @@ def symmetric_from_vector(q: Float[Array, "... 6"]) -> Float[Array, "... 3 3"]:
 
 
 def stretch(q: Float[Array, " 6"]) -> Float[Array, "3 3"]:
-    """The stretch $U(q) = \\exp(\\operatorname{sym}(q))$: symmetric positive definite for every $q$.
+    r"""The stretch $U(q) = \exp(\operatorname{sym}(q))$: symmetric positive definite for every $q$.
 
     The matrix exponential of a symmetric matrix cannot leave the SPD cone, so no shape
     coordinate value leaves it; $q = 0$ is the undeformed body. Computed by `expm`
     (Taylor series, scaling and squaring), which is NaN past
-    $\\|\\operatorname{sym}(q)\\|_\\infty = 256$: principal stretches beyond $e^{\\pm 256}$.
+    $\|\operatorname{sym}(q)\|_\infty = 256$: principal stretches beyond $e^{\pm 256}$.
     """
     return expm(symmetric_from_vector(q))
 
 
 def _divided_differences_of_exp(lam: Float[Array, " 3"], order: int):
-    """The divided differences of $\\exp$ at the eigenvalues, up to `order` (static, 1–4).
+    r"""The divided differences of $\exp$ at the eigenvalues, up to `order` (static, 1–4).
 
-    Opitz: the exponential of the bidiagonal matrix with $x_0, \\dots, x_r$ on its diagonal
-    and ones above holds $e^{[x_0, \\dots, x_r]}$ at $(0, r)$, for equal arguments too
+    Opitz: the exponential of the bidiagonal matrix with $x_0, \dots, x_r$ on its diagonal
+    and ones above holds $e^{[x_0, \dots, x_r]}$ at $(0, r)$, for equal arguments too
     (where quotients of differences cancel). They are symmetric in their arguments, so one
     exponential per multiset of eigenvalue indices serves all its orderings: 10 for order 2
-    (of 27 orderings), 15 for order 3 (of 81); the smaller batch made these 1.4× and 2×
-    faster. A sorted multiset padded with the largest index holds every shorter one as
+    (of 27 orderings), 15 for order 3 (of 81). A sorted multiset padded with the largest index holds every shorter one as
     its leading part.
 
     **Returns:**
 
-    A list: `D[r - 1][i_0, ..., i_r]` $= e^{[\\lambda_{i_0}, \\dots, \\lambda_{i_r}]}$.
+    A list: `D[r - 1][i_0, ..., i_r]` $= e^{[\lambda_{i_0}, \dots, \lambda_{i_r}]}$.
     """
     n = order + 1
     multisets = list(itertools.combinations_with_replacement(range(3), n))
@@ -67,8 +68,8 @@ def _divided_differences_of_exp(lam: Float[Array, " 3"], order: int):
 
 
 def _eigen_frame(q):
-    """$\\operatorname{sym}(q) = V\\Lambda V^T$ and the coordinate directions in that frame,
-    $\\tilde E_k = V^T(\\partial_k \\operatorname{sym})V$, `(6, 3, 3)`."""
+    r"""$\operatorname{sym}(q) = V\Lambda V^T$ and the coordinate directions in that frame,
+    $\tilde E_k = V^T(\partial_k \operatorname{sym})V$, `(6, 3, 3)`."""
     lam, V = jnp.linalg.eigh(symmetric_from_vector(q))
     basis = symmetric_from_vector(jnp.eye(6, dtype=q.dtype))
     return lam, V, jnp.einsum("ai,kab,bj->kij", V, basis, V)
@@ -76,15 +77,15 @@ def _eigen_frame(q):
 
 @jax.custom_jvp
 def stretch_derivatives(q: Float[Array, " 6"]):
-    """$U(q)$ with its first and second derivatives, by the Daleckii–Krein formulas.
+    r"""$U(q)$ with its first and second derivatives, by the Daleckii–Krein formulas.
 
     (Daleckiĭ & Kreĭn 1965; Higham, *Functions of Matrices*, 2008, ch. 3, where the divided
     differences of Opitz's bidiagonal form are too.)
 
-    With $\\operatorname{sym}(q) = V\\Lambda V^T$ and $\\tilde E_k = V^T (\\partial_k\\operatorname{sym}) V$,
-    $\\partial_k U = V\\,(e^{[\\lambda_i,\\lambda_j]}\\,\\tilde E_{k,ij})\\,V^T$ and
-    $\\partial_k\\partial_l U = V\\big(\\sum_m e^{[\\lambda_i,\\lambda_m,\\lambda_j]}
-    (\\tilde E_{k,im}\\tilde E_{l,mj} + \\tilde E_{l,im}\\tilde E_{k,mj})\\big)V^T$: one symmetric
+    With $\operatorname{sym}(q) = V\Lambda V^T$ and $\tilde E_k = V^T (\partial_k\operatorname{sym}) V$,
+    $\partial_k U = V\,(e^{[\lambda_i,\lambda_j]}\,\tilde E_{k,ij})\,V^T$ and
+    $\partial_k\partial_l U = V\big(\sum_m e^{[\lambda_i,\lambda_m,\lambda_j]}
+    (\tilde E_{k,im}\tilde E_{l,mj} + \tilde E_{l,im}\tilde E_{k,mj})\big)V^T$: one symmetric
     eigendecomposition and elementwise work, where forward-mode autodiff of `expm` twice
     carries 49 tangent streams through its 21 products. Differentiated, the tangent holds
     the third derivatives in the same form (`_stretch_third_derivatives`); the eigenvectors,
@@ -106,8 +107,8 @@ def stretch_derivatives(q: Float[Array, " 6"]):
 
     **Returns:**
 
-    `(U, dU, d2U)`: `U` `(3, 3)`; `dU[..., k]` $= \\partial_k U$, `(3, 3, 6)`;
-    `d2U[..., k, l]` $= \\partial_k\\partial_l U$, `(3, 3, 6, 6)` (the layout of `jax.jacfwd`).
+    `(U, dU, d2U)`: `U` `(3, 3)`; `dU[..., k]` $= \partial_k U$, `(3, 3, 6)`;
+    `d2U[..., k, l]` $= \partial_k\partial_l U$, `(3, 3, 6, 6)` (the layout of `jax.jacfwd`).
     """
     lam, V, E = _eigen_frame(q)
     D1, D2 = _divided_differences_of_exp(lam, 2)
@@ -123,12 +124,12 @@ def _stretch_derivatives_jvp(primals, tangents):
 
 
 def _daleckii_krein(V, E, D):
-    """The $r$-th derivatives of $U$ from the $r$-th divided differences `D` (Daleckii–Krein).
+    r"""The $r$-th derivatives of $U$ from the $r$-th divided differences `D` (Daleckii–Krein).
 
-    $\\partial_{k_1}\\cdots\\partial_{k_r} U = V\\big(\\sum_{m}
-    e^{[\\lambda_i,\\lambda_{m_1},\\dots,\\lambda_{m_{r-1}},\\lambda_j]} \\sum_\\sigma
-    \\tilde E_{\\sigma_1,im_1}\\tilde E_{\\sigma_2,m_1m_2}\\cdots\\tilde E_{\\sigma_r,m_{r-1}j}\\big)V^T$
-    over the orderings $\\sigma$ of $(k_1, \\dots, k_r)$; $r$ = `D.ndim - 1`, 1–4.
+    $\partial_{k_1}\cdots\partial_{k_r} U = V\big(\sum_{m}
+    e^{[\lambda_i,\lambda_{m_1},\dots,\lambda_{m_{r-1}},\lambda_j]} \sum_\sigma
+    \tilde E_{\sigma_1,im_1}\tilde E_{\sigma_2,m_1m_2}\cdots\tilde E_{\sigma_r,m_{r-1}j}\big)V^T$
+    over the orderings $\sigma$ of $(k_1, \dots, k_r)$; $r$ = `D.ndim - 1`, 1–4.
 
     **Returns:**
 
@@ -154,8 +155,8 @@ def _stretch_higher_derivatives(q, order):
 
 @jax.custom_jvp
 def _stretch_third_derivatives(q):
-    """$\\partial_k\\partial_l\\partial_p U$, `(3, 3, 6, 6, 6)`, by `_daleckii_krein`. The
-    tangent of `stretch_derivatives` is this contracted with $\\dot q$, a product JAX
+    r"""$\partial_k\partial_l\partial_p U$, `(3, 3, 6, 6, 6)`, by `_daleckii_krein`. The
+    tangent of `stretch_derivatives` is this contracted with $\dot q$, a product JAX
     transposes without looking inside, so that differentiating a gradient never reaches
     the eigenvectors either; its own tangent is the fourth derivatives contracted the same
     way."""
@@ -170,12 +171,10 @@ def _stretch_third_derivatives_jvp(primals, tangents):
 
 @jax.custom_jvp
 def _stretch_fourth_derivatives(q):
-    """$\\partial_k\\partial_l\\partial_p\\partial_s U$, `(3, 3, 6, 6, 6, 6)`, by
+    r"""$\partial_k\partial_l\partial_p\partial_s U$, `(3, 3, 6, 6, 6, 6)`, by
     `_daleckii_krein`. Reached by second-order differentiation of the vector field (a
-    Hessian of a step). It replaced `jax.jvp` of three nested `jax.jacfwd`s of `expm`: in a
-    forward-over-forward Hessian of one Lie–Euler step of the affine body, compiling went
-    from 22 to 14 s and the evaluation from 0.32 to 0.11 s; autodiff through `expm`'s
-    squarings was also ~1e-12 off where eigenvalues repeat."""
+    Hessian of a step), where it compiles and runs faster than autodiff of `expm`, and
+    stays exact where eigenvalues repeat."""
     return _stretch_higher_derivatives(q, 4)
 
 
@@ -186,19 +185,19 @@ def _stretch_fourth_derivatives_jvp(primals, tangents):
 
 
 class AffineBody(AbstractSystem):
-    """An affinely deformable body, $x = c + F X$ with $F = R\\,U(q)$ (seed 004, §4, (4.3)).
+    r"""An affinely deformable body, $x = c + F X$ with $F = R\,U(q)$ (seed 004, §4, (4.3)).
 
-    Kinetic energy $T = \\tfrac12 m|\\dot c|^2 + \\tfrac12\\operatorname{tr}(\\dot F E \\dot F^T)$ with
-    $E = \\int X X^T dm$. The section is $r(q) = (U(q), c = 0)$: the section frame sits at
-    the centre of mass, so with $g = (R, c)$ and $\\xi = (\\omega, v)$,
-    $\\dot c = R v$ and $\\dot F = R(\\tilde\\omega U + \\dot U)$.
+    Kinetic energy $T = \tfrac12 m|\dot c|^2 + \tfrac12\operatorname{tr}(\dot F E \dot F^T)$ with
+    $E = \int X X^T dm$. The section is $r(q) = (U(q), c = 0)$: the section frame sits at
+    the centre of mass, so with $g = (R, c)$ and $\xi = (\omega, v)$,
+    $\dot c = R v$ and $\dot F = R(\tilde\omega U + \dot U)$.
 
     **Arguments:**
 
     - `mass`: $m > 0$.
     - `second_moment`: $E$ (3×3, symmetric positive definite) of the reference
       configuration about its centre of mass; a solid ellipsoid with semi-axes $a_i$ has
-      $E = \\tfrac{m}{5}\\operatorname{diag}(a_i^2)$.
+      $E = \tfrac{m}{5}\operatorname{diag}(a_i^2)$.
     """
 
     mass: Float[Array, ""]
@@ -223,12 +222,12 @@ class AffineBody(AbstractSystem):
         dU = jax.jacfwd(stretch)(q)  # (3, 3, 6): dU[..., k] = dU/dq_k
         return self._metric_from(self._velocity_maps(U, dU))
 
-    def metric_and_derivative(self, q):
-        """$G(q)$ and $\\partial G/\\partial q_l$ in closed form, from `stretch_derivatives`.
+    def metric_jet(self, q):
+        r"""$G(q)$ and $\partial G/\partial q_l$ in closed form, from `stretch_derivatives`.
 
-        With $W$ as in `metric`, $K_{ab} = \\operatorname{tr}(W_a E W_b^T)$ and
-        $\\partial_l K_{ab} = \\operatorname{tr}(\\partial_l W_a E W_b^T) + (a \\leftrightarrow b)$,
-        where $\\partial_l W = [\\hat e_i\\,\\partial_l U,\\ \\partial_l\\partial_k U]$.
+        With $W$ as in `metric`, $K_{ab} = \operatorname{tr}(W_a E W_b^T)$ and
+        $\partial_l K_{ab} = \operatorname{tr}(\partial_l W_a E W_b^T) + (a \leftrightarrow b)$,
+        where $\partial_l W = [\hat e_i\,\partial_l U,\ \partial_l\partial_k U]$.
         """
         U, dU, d2U = stretch_derivatives(q)
         W = self._velocity_maps(U, dU)
@@ -236,12 +235,17 @@ class AffineBody(AbstractSystem):
         P = jnp.einsum("laij,jk,bik->lab", dW, self.second_moment, W)
         dK = P + jnp.swapaxes(P, 1, 2)
         zero = jnp.zeros((), q.dtype)
-        return self._metric_from(W), jax.vmap(lambda K: self._assemble(K, zero))(dK)
+        return DenseMetricJet(self._metric_from(W), jax.vmap(lambda K: self._assemble(K, zero))(dK))
+
+    def checked(self) -> "AffineBody":
+        mass = checked_mass("AffineBody.mass", self.mass)
+        second_moment = checked_spd("AffineBody.second_moment", self.second_moment)
+        return eqx.tree_at(lambda b: (b.mass, b.second_moment), self, (mass, second_moment))
 
     @staticmethod
     def _velocity_maps(U, dU):
-        """$W = [\\hat e_1 U, \\hat e_2 U, \\hat e_3 U, \\partial_1 U, \\dots, \\partial_6 U]$, with
-        $\\dot F = R\\,W\\cdot(\\omega, \\dot q)$."""
+        r"""$W = [\hat e_1 U, \hat e_2 U, \hat e_3 U, \partial_1 U, \dots, \partial_6 U]$, with
+        $\dot F = R\,W\cdot(\omega, \dot q)$."""
         return jnp.concatenate([lie.hat(jnp.eye(3, dtype=U.dtype)) @ U, jnp.moveaxis(dU, -1, 0)])
 
     def _metric_from(self, W):
@@ -250,7 +254,7 @@ class AffineBody(AbstractSystem):
 
     @staticmethod
     def _assemble(K, mass):
-        """$G$ from $K$ (rows and columns $\\omega, \\dot q$) and the translational block $m\\mathbf 1$."""
+        r"""$G$ from $K$ (rows and columns $\omega, \dot q$) and the translational block $m\mathbf 1$."""
         G = jnp.zeros((12, 12), K.dtype)
         G = G.at[:3, :3].set(K[:3, :3]).at[:3, 6:].set(K[:3, 3:])
         G = G.at[6:, :3].set(K[3:, :3]).at[6:, 6:].set(K[3:, 3:])

@@ -1,4 +1,4 @@
-"""The abstract mechanical system: an invariant metric in a local trivialization."""
+r"""The abstract mechanical system: an invariant metric in a local trivialization."""
 
 import abc
 
@@ -11,18 +11,19 @@ from ._metric_jet import AbstractMetricJet, DenseMetricJet
 
 
 class AbstractSystem(eqx.Module):
-    """A mechanical system whose configuration space is a principal SE(3) bundle.
+    r"""A mechanical system whose configuration space is a principal SE(3) bundle.
 
-    In a local trivialization $s = g \\cdot r(q)$ (seed 004, §2) a system is known by its
-    invariant kinetic-energy metric. With $\\xi = g^{-1}\\dot g$ the body velocity of the
-    section frame and $\\dot q$ the shape velocity,
+    In a local trivialization $s = g \cdot r(q)$ (seed 004, §2) a system is known by its
+    invariant kinetic-energy metric. With $\xi = g^{-1}\dot g$ the body velocity of the
+    section frame and $\dot q$ the shape velocity,
 
-    $$T = \\tfrac12 [\\xi; \\dot q]^T G(q) [\\xi; \\dot q], \\quad
-      G = \\begin{bmatrix} I_r & B \\\\ B^T & M \\end{bmatrix}.$$
+    $$T = \tfrac12 [\xi; \dot q]^T G(q) [\xi; \dot q], \quad
+      G = \begin{bmatrix} I_r & B \\ B^T & M \end{bmatrix}.$$
 
     Everything else (locked inertia, connection, shape metric, curvature, the equations
-    (2.6)–(2.7)) follows from `metric`. Subclasses give `shape_dim` and `metric`; they may
-    override `metric_and_derivative` or `metric_jet` with a closed form.
+    (2.6)–(2.7)) follows from `metric` and `metric_jet`. Subclasses implement
+    `shape_dim`, `metric`, `metric_jet` (a closed form, or `autodiff_metric_jet`) and
+    `checked`.
     """
 
     @property
@@ -32,7 +33,7 @@ class AbstractSystem(eqx.Module):
 
     @abc.abstractmethod
     def metric(self, q: Float[Array, " d"]) -> Float[Array, "6+d 6+d"]:
-        """The metric $G(q)$ of the kinetic energy in the trivialization variables $(\\xi, \\dot q)$.
+        r"""The metric $G(q)$ of the kinetic energy in the trivialization variables $(\xi, \dot q)$.
 
         **Arguments:**
 
@@ -43,22 +44,8 @@ class AbstractSystem(eqx.Module):
         $G(q)$, symmetric positive definite, shape `(6 + d, 6 + d)`.
         """
 
-    def metric_and_derivative(self, q):
-        """$G(q)$ and its partial derivatives $\\partial G / \\partial q_k$.
-
-        **Arguments:**
-
-        - `q`: shape coordinates, shape `(d,)`.
-
-        **Returns:**
-
-        A pair `(G, dG)` with `G` of shape `(6+d, 6+d)` and `dG[k]` $= \\partial G/\\partial q_k$,
-        shape `(d, 6+d, 6+d)` (derivative index first, so that contractions are batched
-        matrix products). The default is forward-mode autodiff of `metric`.
-        """
-        return self.metric(q), jnp.moveaxis(jax.jacfwd(self.metric)(q), -1, 0)
-
-    def metric_jet(self, q) -> AbstractMetricJet:
+    @abc.abstractmethod
+    def metric_jet(self, q: Float[Array, " d"]) -> AbstractMetricJet:
         """The metric and its first derivative at $q$, for the contractions (2.6)–(2.7) use.
 
         **Arguments:**
@@ -67,6 +54,49 @@ class AbstractSystem(eqx.Module):
 
         **Returns:**
 
-        An `AbstractMetricJet`; the default stores `metric_and_derivative(q)`.
+        An `AbstractMetricJet`.
         """
-        return DenseMetricJet(*self.metric_and_derivative(q))
+
+    @abc.abstractmethod
+    def checked(self) -> "AbstractSystem":
+        """The system with run-time checks of its parameters attached (`equinox.error_if`).
+
+        Construction checks concrete parameters; parameters that are traced (inside
+        `jax.jit` or `jax.grad`) or changed afterwards (an optimizer's update, `eqx.tree_at`)
+        are checked here instead, each with the message construction would give.
+        `simulate` calls it once per solve.
+
+        **Returns:**
+
+        The same system, its parameters passed through `equinox.error_if`.
+        """
+
+    def metric_and_derivative(self, q):
+        r"""$G(q)$ and its partial derivatives $\partial G / \partial q_k$, from `metric_jet`.
+
+        **Arguments:**
+
+        - `q`: shape coordinates, shape `(d,)`.
+
+        **Returns:**
+
+        A pair `(G, dG)` with `G` of shape `(6+d, 6+d)` and `dG[k]` $= \partial G/\partial q_k$,
+        shape `(d, 6+d, 6+d)` (derivative index first, so that contractions are batched
+        matrix products).
+        """
+        jet = self.metric_jet(q)
+        return jet.metric, jet.derivative()
+
+
+def autodiff_metric_jet(system: AbstractSystem, q) -> DenseMetricJet:
+    r"""The metric jet of any system by forward-mode autodiff of its `metric`.
+
+    **Arguments:**
+
+    - `system`: the system; `q`: shape coordinates, shape `(d,)`.
+
+    **Returns:**
+
+    A `DenseMetricJet` holding $G(q)$ and every $\partial G/\partial q_k$.
+    """
+    return DenseMetricJet(system.metric(q), jnp.moveaxis(jax.jacfwd(system.metric)(q), -1, 0))

@@ -6,13 +6,13 @@ import equinox as eqx
 import jax
 import jax.numpy as jnp
 
-from ._base import AbstractSystem
+from ._base import AbstractSystem, autodiff_metric_jet
 
 
 class GenericSystem(AbstractSystem):
-    """A system defined by its kinetic energy $T(q, \\dot q, \\xi)$, quadratic in the velocities.
+    r"""A system defined by its kinetic energy $T(q, \dot q, \xi)$, quadratic in the velocities.
 
-    The metric is the Hessian of $T$ in $(\\xi, \\dot q)$, by autodiff. Make
+    The metric is the Hessian of $T$ in $(\xi, \dot q)$, by autodiff. Make
     `kinetic_energy` an `equinox.Module` (or close over arrays) to differentiate with
     respect to its parameters.
 
@@ -45,3 +45,11 @@ class GenericSystem(AbstractSystem):
             return self.kinetic_energy(q, velocity[6:], velocity[:6])
 
         return jax.hessian(energy)(jnp.zeros(6 + d, q.dtype))
+
+    def metric_jet(self, q):
+        return autodiff_metric_jet(self, q)
+
+    def checked(self) -> "GenericSystem":
+        """The system itself: a user's kinetic energy has no parameters of bundledyn's to
+        check (that it is positive definite is the function's to ensure)."""
+        return self

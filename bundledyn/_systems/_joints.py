@@ -1,15 +1,15 @@
-"""Joints of a multibody tree, each a product of elementary motions.
+r"""Joints of a multibody tree, each a product of elementary motions.
 
 A joint moves a child body relative to its home placement in the parent. Every joint is
 a product of elementary factors, each with a closed-form exponential:
 
-- a *screw* factor, one coordinate $\\theta$: $\\exp(\\theta \\hat S)$ with $S = (k, a\\times k)$
+- a *screw* factor, one coordinate $\theta$: $\exp(\theta \hat S)$ with $S = (k, a\times k)$
   (rotation about the axis $k$ through the anchor $a$) or $S = (0, k)$ (translation along $k$);
-- a *ball* factor, three coordinates $\\varphi$ (the rotation vector, exponential coordinates):
-  rotation $\\exp(\\tilde\\varphi)$ about the anchor $a$.
+- a *ball* factor, three coordinates $\varphi$ (the rotation vector, exponential coordinates):
+  rotation $\exp(\tilde\varphi)$ about the anchor $a$.
 
-The rotation vector has no gimbal lock: its chart is regular for $|\\varphi| < 2\\pi$ (the
-left-trivialized $\\operatorname{dexp}$ is invertible there), so a spherical joint can turn
+The rotation vector has no gimbal lock: its chart is regular for $|\varphi| < 2\pi$ (the
+left-trivialized $\operatorname{dexp}$ is invertible there), so a spherical joint can turn
 in any direction through any angle below one full turn from its home pose.
 All axes and anchors are in the child body's frame at its home placement (MuJoCo's
 convention for joint `axis` and `pos`).
@@ -54,12 +54,12 @@ class AbstractJoint(eqx.Module):
 
     @abc.abstractmethod
     def factors(self) -> tuple[tuple[str, Array], ...]:
-        """The elementary factors in order: `("screw", S)` with $S\\in\\mathbb{R}^6$ or
-        `("ball", a)` with the anchor $a\\in\\mathbb{R}^3$."""
+        r"""The elementary factors in order: `("screw", S)` with $S\in\mathbb{R}^6$ or
+        `("ball", a)` with the anchor $a\in\mathbb{R}^3$."""
 
 
 class Revolute(AbstractJoint):
-    """Rotation by an angle $\\theta$ about `axis` through `anchor` (child frame)."""
+    r"""Rotation by an angle $\theta$ about `axis` through `anchor` (child frame)."""
 
     axis: Float[Array, "3"]
     anchor: Float[Array, "3"]
@@ -87,11 +87,11 @@ class Prismatic(AbstractJoint):
 
 
 class Universal(AbstractJoint):
-    """Rotation about `axis1` (fixed in the parent), then about `axis2` (fixed in the child).
+    r"""Rotation about `axis1` (fixed in the parent), then about `axis2` (fixed in the child).
 
     Both axes pass through `anchor` and are given in the child frame at home; they must
-    not be parallel. Coordinates $(\\theta_1, \\theta_2)$, motion
-    $\\exp(\\theta_1 \\hat S_1)\\exp(\\theta_2 \\hat S_2)$ (a Cardan/Hooke joint).
+    not be parallel. Coordinates $(\theta_1, \theta_2)$, motion
+    $\exp(\theta_1 \hat S_1)\exp(\theta_2 \hat S_2)$ (a Cardan/Hooke joint).
     """
 
     axis1: Float[Array, "3"]
@@ -117,12 +117,12 @@ class Universal(AbstractJoint):
 
 
 class Spherical(AbstractJoint):
-    """Any rotation about `anchor` (child frame), in exponential coordinates $\\varphi\\in\\mathbb{R}^3$.
+    r"""Any rotation about `anchor` (child frame), in exponential coordinates $\varphi\in\mathbb{R}^3$.
 
-    The child's rotation relative to its home placement is $\\exp(\\tilde\\varphi)$ and its body
-    angular velocity is $\\omega = \\operatorname{dexp}(\\varphi)\\dot\\varphi$ (left-trivialized
+    The child's rotation relative to its home placement is $\exp(\tilde\varphi)$ and its body
+    angular velocity is $\omega = \operatorname{dexp}(\varphi)\dot\varphi$ (left-trivialized
     dexp, the right Jacobian of SO(3)). No gimbal lock: the chart is singular only at
-    $|\\varphi| = 2\\pi$, a full turn away from home. (MuJoCo stores a ball joint as a
+    $|\varphi| = 2\pi$, a full turn away from home. (MuJoCo stores a ball joint as a
     quaternion; the converters of `Multibody` map between the two.)
     """
 
@@ -146,11 +146,11 @@ class Fixed(AbstractJoint):
 
 
 class Composite(AbstractJoint):
-    """Several joints acting in sequence on one body (MuJoCo bodies with more than one joint).
+    r"""Several joints acting in sequence on one body (MuJoCo bodies with more than one joint).
 
     **Arguments:**
 
-    - `joints`: the joints, applied left to right: motion $J_1(q_1) J_2(q_2) \\cdots$.
+    - `joints`: the joints, applied left to right: motion $J_1(q_1) J_2(q_2) \cdots$.
     """
 
     joints: tuple[AbstractJoint, ...]

@@ -9,11 +9,11 @@ from jaxtyping import Array, Float
 
 
 class AbstractMetricJet(eqx.Module):
-    """The 1-jet of the metric at a shape $q$: $G(q)$ and the derivatives $\\partial_k G$.
+    r"""The 1-jet of the metric at a shape $q$: $G(q)$ and the derivatives $\partial_k G$.
 
-    (2.6)–(2.7) (seed 004) never need the whole tensor $\\partial_k G$, only its contractions
+    (2.6)–(2.7) (seed 004) never need the whole tensor $\partial_k G$, only its contractions
     with the velocities: the derivative along the shape velocity and a few covectors
-    $k \\mapsto x^T \\partial_k G\\, y$ (`along`, `along_applied`, `forms`). A system with
+    $k \mapsto x^T \partial_k G\, y$ (`along`, `along_applied`, `forms`). A system with
     structure (a tree of bodies) computes these directly, at the cost of the metric, instead
     of $d$ derivatives of a matrix.
 
@@ -24,41 +24,41 @@ class AbstractMetricJet(eqx.Module):
 
     @abc.abstractmethod
     def along(self, u: Float[Array, " d"]) -> Float[Array, "6+d 6+d"]:
-        """$\\partial_u G = \\sum_k u_k\\,\\partial G/\\partial q_k$, the derivative along a shape velocity."""
+        r"""$\partial_u G = \sum_k u_k\,\partial G/\partial q_k$, the derivative along a shape velocity."""
 
     def along_applied(
         self, u: Float[Array, " d"], X: Float[Array, "m 6+d"]
     ) -> Float[Array, "m 6+d"]:
-        """$(\\partial_u G)\\, x_i$ for each velocity $x_i$ (row of `X`): all that (2.6)–(2.7)
+        r"""$(\partial_u G)\, x_i$ for each velocity $x_i$ (row of `X`): all that (2.6)–(2.7)
         need of the derivative along the shape velocity. The default multiplies by `along(u)`."""
         return X @ self.along(u)
 
     @abc.abstractmethod
     def forms(self, X: Float[Array, "m 6+d"]) -> Float[Array, "m m d"]:
-        """The covectors $k \\mapsto x_i^T (\\partial G/\\partial q_k)\\, x_j$ of every pair of velocities.
+        r"""The covectors $k \mapsto x_i^T (\partial G/\partial q_k)\, x_j$ of every pair of velocities.
 
         **Arguments:**
 
-        - `X`: $m$ velocities $x_i = [\\xi_i; \\dot q_i]$ as rows.
+        - `X`: $m$ velocities $x_i = [\xi_i; \dot q_i]$ as rows.
 
         **Returns:**
 
-        `F[i, j, k]` $= x_i^T \\partial_k G\\, x_j$, symmetric in `i, j`.
+        `F[i, j, k]` $= x_i^T \partial_k G\, x_j$, symmetric in `i, j`.
         """
 
     def derivative(self) -> Float[Array, "d 6+d 6+d"]:
-        """All partial derivatives, `dG[k]` $= \\partial G/\\partial q_k$ (one `along` per coordinate)."""
+        r"""All partial derivatives, `dG[k]` $= \partial G/\partial q_k$ (one `along` per coordinate)."""
         d = self.metric.shape[0] - 6
         return jax.vmap(self.along)(jnp.eye(d, dtype=self.metric.dtype))
 
 
 class DenseMetricJet(AbstractMetricJet):
-    """A metric jet stored as the full derivative tensor (any system; autodiff by default).
+    r"""A metric jet stored as the full derivative tensor (any system; autodiff by default).
 
     **Arguments:**
 
     - `metric`: $G(q)$, shape `(6+d, 6+d)`.
-    - `dG`: `dG[k]` $= \\partial G/\\partial q_k$, shape `(d, 6+d, 6+d)`.
+    - `dG`: `dG[k]` $= \partial G/\partial q_k$, shape `(d, 6+d, 6+d)`.
     """
 
     metric: Float[Array, "6+d 6+d"]

@@ -1,29 +1,40 @@
-"""A single rigid body: the simplest system, a trivial bundle with no shape."""
+r"""A single rigid body: the simplest system, a trivial bundle with no shape."""
 
+import equinox as eqx
 import jax.numpy as jnp
 from jaxtyping import Array, Float
 
 from .. import lie
 from ._base import AbstractSystem
-from ._validation import check_inertia, check_mass, check_shape
+from ._metric_jet import DenseMetricJet
+from ._validation import (
+    check_inertia,
+    check_mass,
+    check_shape,
+    checked_inertia,
+    checked_mass,
+)
 
 
 def spatial_inertia(mass, com, inertia):
-    """Spatial inertia about a frame's origin, in that frame's axes (angular first).
+    r"""Spatial inertia about a frame's origin, in that frame's axes (angular first).
 
     **Arguments:**
 
     - `mass`: $m > 0$, shape `(...)`.
     - `com`: centre of mass $c$ in the frame, shape `(..., 3)`.
-    - `inertia`: rotational inertia $J_c$ about the centre of mass, shape `(..., 3, 3)`.
+    - `inertia`: rotational inertia $J_c$ about the centre of mass, shape `(..., 3, 3)`;
+      its symmetric part is used, so that derivatives with respect to it are symmetric.
 
     **Returns:**
 
-    $\\begin{bmatrix} J_c - m\\tilde c\\tilde c & m\\tilde c \\\\ m\\tilde c^T & m 1\\end{bmatrix}$,
-    shape `(..., 6, 6)`, so that $T = \\tfrac12 \\nu^T M \\nu$ for a body twist $\\nu=(\\omega, v)$.
+    $\begin{bmatrix} J_c - m\tilde c\tilde c & m\tilde c \\ m\tilde c^T & m 1\end{bmatrix}$,
+    shape `(..., 6, 6)`, so that $T = \tfrac12 \nu^T M \nu$ for a body twist $\nu=(\omega, v)$.
     """
     m = jnp.asarray(mass)[..., None, None]
     c = jnp.asarray(com)
+    inertia = jnp.asarray(inertia)
+    inertia = 0.5 * (inertia + jnp.swapaxes(inertia, -1, -2))
     c_hat = lie.hat(c)
     eye = jnp.broadcast_to(jnp.eye(3, dtype=c_hat.dtype), c_hat.shape)
     # c̃c̃ = c cᵀ - |c|² 1: elementwise, so the whole matrix is one fused kernel.
@@ -34,7 +45,7 @@ def spatial_inertia(mass, com, inertia):
 
 
 class RigidBody(AbstractSystem):
-    """A rigid body: mass, centre of mass and rotational inertia in its own frame.
+    r"""A rigid body: mass, centre of mass and rotational inertia in its own frame.
 
     As a system it moves freely with no shape ($d = 0$): the section frame is the body
     frame and the metric is its spatial inertia. It is also the building block of
@@ -74,3 +85,12 @@ class RigidBody(AbstractSystem):
 
     def metric(self, q):
         return self.spatial_inertia()
+
+    def metric_jet(self, q):
+        G = self.spatial_inertia()
+        return DenseMetricJet(G, jnp.zeros((0, 6, 6), G.dtype))
+
+    def checked(self) -> "RigidBody":
+        mass = checked_mass("RigidBody.mass", self.mass)
+        inertia = checked_inertia("RigidBody.inertia", self.inertia)
+        return eqx.tree_at(lambda b: (b.mass, b.inertia), self, (mass, inertia))

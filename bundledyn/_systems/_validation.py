@@ -1,5 +1,11 @@
-"""Construction-time checks shared by the systems: concrete values only, never tracers."""
+"""Checks of the systems' parameters: at construction on concrete values, and at run time.
 
+The construction checks raise `ValueError` with the fix and skip traced values; their
+run-time forms (`checked_*`) attach `equinox.error_if` to values that may be traced.
+"""
+
+import equinox as eqx
+import jax.numpy as jnp
 import numpy as np
 
 
@@ -32,10 +38,10 @@ def check_mass(name: str, mass) -> None:
 
 
 def check_inertia(name: str, inertia) -> None:
-    """Raise `ValueError` unless `inertia` is a physical rotational inertia (3×3).
+    r"""Raise `ValueError` unless `inertia` is a physical rotational inertia (3×3).
 
     Physical means symmetric, positive definite and obeying the triangle inequality
-    of the principal moments, $I_1 + I_2 \\ge I_3$ (any ordering): the inertia of a
+    of the principal moments, $I_1 + I_2 \ge I_3$ (any ordering): the inertia of a
     real mass distribution.
     """
     J = concrete(inertia)
@@ -66,3 +72,47 @@ def check_spd(name: str, matrix) -> None:
         np.linalg.eigvalsh(0.5 * (S + S.T))[0] > 0
     ):
         raise ValueError(f"`{name}` must be symmetric positive definite, got\n{S}.")
+
+
+# Run-time forms of the checks above: `equinox.error_if` on traced values, for `checked`.
+
+
+def checked_mass(name: str, mass):
+    """`mass` with a run-time check that every entry is finite and positive."""
+    mass = jnp.asarray(mass)
+    bad = ~jnp.all(jnp.isfinite(mass) & (mass > 0))
+    return eqx.error_if(mass, bad, f"`{name}` must be finite and positive.")
+
+
+def _symmetric_part_moments(matrix):
+    """The eigenvalues of the symmetric part, and whether `matrix` is symmetric to 1e-9."""
+    scale = jnp.maximum(jnp.max(jnp.abs(matrix)), jnp.finfo(matrix.dtype).tiny)
+    asymmetry = jnp.max(jnp.abs(matrix - jnp.swapaxes(matrix, -1, -2)))
+    symmetric = 0.5 * (matrix + jnp.swapaxes(matrix, -1, -2))
+    return jnp.linalg.eigvalsh(symmetric), asymmetry <= 1e-9 * scale
+
+
+def checked_inertia(name: str, inertia):
+    """`inertia` (3×3, or stacked) with run-time checks: symmetric, positive definite,
+    triangle inequality of the principal moments (see `check_inertia`)."""
+    inertia = jnp.asarray(inertia)
+    moments, symmetric = _symmetric_part_moments(inertia)
+    inertia = eqx.error_if(inertia, ~symmetric, f"`{name}` must be symmetric.")
+    inertia = eqx.error_if(
+        inertia, ~jnp.all(moments[..., 0] > 0), f"`{name}` must be positive definite."
+    )
+    triangle = moments[..., 0] + moments[..., 1] >= moments[..., 2] * (1 - 1e-9)
+    return eqx.error_if(
+        inertia,
+        ~jnp.all(triangle),
+        f"`{name}` breaks the triangle inequality of principal moments: no mass distribution "
+        "has it.",
+    )
+
+
+def checked_spd(name: str, matrix):
+    """`matrix` with a run-time check that it is symmetric positive definite."""
+    matrix = jnp.asarray(matrix)
+    moments, symmetric = _symmetric_part_moments(matrix)
+    bad = ~symmetric | ~jnp.all(moments[..., 0] > 0)
+    return eqx.error_if(matrix, bad, f"`{name}` must be symmetric positive definite.")

@@ -13,7 +13,7 @@ from .._effects import mass_and_centre
 from .._files import atomic_path
 from .._solids import AbstractSolid, Box, Ellipsoid
 from .._systems._affine_body import AffineBody, stretch
-from .._systems._multibody import Multibody
+from .._systems._multibody import AbstractMultibody
 from .._systems._rigid_body import RigidBody
 from .._trajectory import Trajectory
 from ._canvas import new_figure
@@ -45,15 +45,15 @@ def _inertia_box(mass, com, inertia) -> DrawnBody:
 
 
 def drawn_bodies(system, solids=None) -> tuple[DrawnBody, ...]:
-    """What to draw for each body of `system`, in its body frame.
+    r"""What to draw for each body of `system`, in its body frame.
 
     Given `solids` (one `AbstractSolid` per body, centred at the body's centre of mass and
     aligned with its frame), those; otherwise each rigid body's inertia box (the box with
     its mass and principal moments, along its principal axes) and an affine body's
-    ellipsoid of second moment $E$ (semi-axes $\\sqrt{5\\lambda_i/m}$). A system with no
+    ellipsoid of second moment $E$ (semi-axes $\sqrt{5\lambda_i/m}$). A system with no
     bodies (`GenericSystem`) draws nothing but its frame and centre of mass.
     """
-    if isinstance(system, Multibody):
+    if isinstance(system, AbstractMultibody):
         com, bodies = np.asarray(system.com), system.bodies()
     elif isinstance(system, RigidBody):
         com, bodies = np.asarray(system.com)[None], (system,)
@@ -76,7 +76,7 @@ def drawn_bodies(system, solids=None) -> tuple[DrawnBody, ...]:
 
 def body_maps(system, q):
     """Each body's frame in the section frame at shape `q`; an affine body's map is $U(q)$."""
-    if isinstance(system, Multibody):
+    if isinstance(system, AbstractMultibody):
         return system.body_poses(q)
     if isinstance(system, AffineBody):
         return jnp.eye(4).at[:3, :3].set(stretch(q))

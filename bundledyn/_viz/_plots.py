@@ -24,10 +24,10 @@ def _maybe_save(fig, path):
 
 
 def plot_drift(trajectory: Trajectory, *, path=None) -> Figure:
-    """Energy and spatial momentum minus their initial values, against time.
+    r"""Energy and spatial momentum minus their initial values, against time.
 
     Both are conserved by a free system with conservative effects (seed 004, (2.6) with
-    $\\mathbf F = 0$): the curves show the integrator's error.
+    $\mathbf F = 0$): the curves show the integrator's error.
 
     **Arguments:**
 

@@ -1,0 +1,43 @@
+r"""The chart the Lie-group solvers step in, and the field read in it.
+
+Around a base point $y_0 = (g_0, x_0)$ the solvers work in the chart
+$(\Omega, \delta) \mapsto (g_0\exp\hat\Omega,\ x_0 + \delta)$, $\Omega\in\mathbb R^6$. A
+"chart increment" is a pytree of the same structure as `y` whose first leaf is a twist
+(or a stack of twists) instead of a $4\times4$ matrix. The field comes in the same form,
+the pose's rate as its body twist (`body_field`): from an `AbstractBodyTerm` directly,
+from any other term read off $\dot g$.
+"""
+
+import jax.tree_util as jtu
+
+from .. import lie
+from .._linalg import dot
+from .._term import AbstractBodyTerm, split, twist_of_tangent
+
+__all__ = ["body_field", "from_chart"]
+
+
+def from_chart(g0, rest0, treedef, omega, deltas):
+    r"""The state $(g_0\exp\hat\Omega,\ x_0 + \delta)$ with the structure of `y0`."""
+    g = dot(g0, lie.se3_exp(omega).astype(g0.dtype))
+    rest = [x + d.astype(x.dtype) for x, d in zip(rest0, deltas, strict=True)]
+    return jtu.tree_unflatten(treedef, [g, *rest])
+
+
+def body_field(terms, t, y, args, control=1.0):
+    r"""The field of `terms` at `y` times `control`, with the pose's rate as the body twist
+    $\xi$ (first leaf).
+
+    Read directly from an `AbstractBodyTerm`, also inside the wrapper that `diffeqsolve`
+    puts around every term (a `term` and a time `direction`, whose `vf` evaluates the term
+    at `direction * t`), and otherwise as $(g^{-1}\dot g)^\vee$. Other wrappers, such as
+    the adjoint's, change the state and are not looked into.
+    """
+    if isinstance(terms, AbstractBodyTerm):
+        return terms.prod(terms.body_vf(t, y, args), control)
+    inner, direction = getattr(terms, "term", None), getattr(terms, "direction", None)
+    if isinstance(inner, AbstractBodyTerm) and direction is not None:
+        return terms.prod(inner.body_vf(t * direction, y, args), control)
+    g, _, treedef = split(y)
+    gdot, *rest = jtu.tree_leaves(terms.prod(terms.vf(t, y, args), control))
+    return jtu.tree_unflatten(treedef, [twist_of_tangent(g, gdot), *rest])
