@@ -101,7 +101,10 @@ def simulate(
     **Arguments:**
 
     - `scene`: the `Scene` (system, effects, shape mode, frame).
-    - `state0`: the initial `State` (for a `Prescribed` shape, q and qdot are taken from it).
+    - `state0`: the initial `State` (for a `Prescribed` shape, q and qdot are taken from its
+      motion). The state and the system's parameters are checked at run time
+      (`State.checked`, `AbstractSystem.checked`): a NaN, a pose off SE(3), a negative
+      mass or a non-physical inertia raises, inside `jax.jit` and `jax.grad` too.
     - `t1`, `t0`: end and start times.
     - `solver`: a Lie-group solver (an `AbstractLieGroupSolver`: `RKMK87` default, `RKMK54`,
       `RKMK4`, `LieEuler`, `VariationalMidpoint`) or any diffrax solver, which then integrates the pose in its
@@ -140,6 +143,8 @@ def simulate(
     saveat = diffrax.SaveAt(t0=True, t1=True) if saveat is None else saveat
     if isinstance(solver, AbstractRKMK) and not _interpolates(saveat, event):
         solver = dataclasses.replace(solver, dense_output=False)
+    # Parameters may be traced (fitted, or under `jax.grad`): check them once per solve.
+    scene = eqx.tree_at(lambda s: s.system, scene, scene.system.checked())
     term = SceneTerm(scene)
     y0 = term.encode(t0, state0)
     if stepsize_controller is not None:
