@@ -1,0 +1,133 @@
+"""The package's structure: imports flow one way (DESIGN §4), and the type checker passes."""
+
+import ast
+import json
+import pathlib
+import subprocess
+
+import pytest
+
+import bundledyn
+
+PACKAGE = pathlib.Path(bundledyn.__file__).parent
+
+# DESIGN §4's layers, lowest first: a module may import its own layer and those before it.
+LAYERS = (
+    ("lie", {"_lie", "lie", "_linalg", "_xla_flags", "_files", "_paths"}),
+    ("systems", {"_systems", "_solids", "_state", "_precision"}),
+    ("geometry", {"_geometry", "_holonomy"}),
+    ("dynamics", {"_dynamics"}),
+    ("scene", {"_effects", "_frames", "_scene"}),
+    ("term", {"_term"}),
+    ("integrators", {"_solver"}),
+    ("simulate", {"_simulate", "_trajectory"}),
+    ("identification and checks", {"_checks", "checks", "_identify", "identify"}),
+    ("front", {"_viz", "viz", "_scene_file", "_cli", "__main__", "__init__"}),
+)
+
+
+def _module_name(path: pathlib.Path) -> str:
+    parts = path.relative_to(PACKAGE.parent).with_suffix("").parts
+    return ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
+
+
+def _resolve(module: str, is_package: bool, node: ast.ImportFrom) -> str:
+    if not node.level:
+        return node.module or ""
+    base = module.split(".")
+    base = base if is_package else base[:-1]
+    base = base[: len(base) - node.level + 1]
+    return ".".join(base + ([node.module] if node.module else []))
+
+
+def _imports(path: pathlib.Path, modules: set[str]) -> set[str]:
+    """The package's modules that `path` imports anywhere in it (function bodies included)."""
+    module = _module_name(path)
+    found = set()
+    for node in ast.walk(ast.parse(path.read_text())):
+        if isinstance(node, ast.Import):
+            found |= {alias.name for alias in node.names}
+        elif isinstance(node, ast.ImportFrom):
+            target = _resolve(module, path.name == "__init__.py", node)
+            for alias in node.names:  # `from . import lie` imports a module
+                sub = f"{target}.{alias.name}"
+                found.add(sub if sub in modules else target)
+    return {m for m in found if m in modules and m != module}
+
+
+@pytest.fixture(scope="module")
+def graph():
+    paths = sorted(PACKAGE.rglob("*.py"))
+    modules = {_module_name(p) for p in paths}
+    return {_module_name(p): _imports(p, modules) for p in paths}
+
+
+def _layer(module: str) -> int:
+    top = module.split(".")[1] if "." in module else "__init__"
+    for rank, (_, names) in enumerate(LAYERS):
+        if top in names:
+            return rank
+    raise AssertionError(f"{module} is in no layer of DESIGN §4: add it to LAYERS")
+
+
+def test_no_import_cycles(graph):
+    """Tarjan's strongly connected components: each must be a single module."""
+    index, low, stack, on_stack, cycles = {}, {}, [], set(), []
+
+    def visit(v):
+        index[v] = low[v] = len(index)
+        stack.append(v)
+        on_stack.add(v)
+        for w in graph[v]:
+            if w not in index:
+                visit(w)
+                low[v] = min(low[v], low[w])
+            elif w in on_stack:
+                low[v] = min(low[v], index[w])
+        if low[v] == index[v]:
+            component = []
+            while True:
+                w = stack.pop()
+                on_stack.discard(w)
+                component.append(w)
+                if w == v:
+                    break
+            if len(component) > 1:
+                cycles.append(sorted(component))
+
+    for v in graph:
+        if v not in index:
+            visit(v)
+    assert not cycles, cycles
+
+
+def test_no_import_from_a_higher_layer(graph):
+    upward = [
+        f"{a} ({LAYERS[_layer(a)][0]}) imports {b} ({LAYERS[_layer(b)][0]})"
+        for a, targets in graph.items()
+        for b in targets
+        if _layer(b) > _layer(a)
+    ]
+    assert not upward, upward
+
+
+def test_the_walker_sees_lazy_and_relative_imports(graph):
+    """The checks above would pass vacuously if the walker missed imports."""
+    assert "bundledyn._term" in graph["bundledyn._solver._chart"]
+    assert "bundledyn.lie" in graph["bundledyn._systems._multibody"]
+    assert "bundledyn" in graph["bundledyn._cli"]  # imported inside its functions
+    assert "bundledyn._scene" in graph["bundledyn._term"]
+
+
+def test_pyright_passes():
+    """pyright in basic mode (`[tool.pyright]` in pyproject.toml) on the package."""
+    result = subprocess.run(
+        ["pyright", "--outputjson"], cwd=PACKAGE.parent, capture_output=True, text=True, timeout=600
+    )
+    report = json.loads(result.stdout)
+    messages = [
+        f"{d['file']}:{d['range']['start']['line'] + 1}: {d['message']}"
+        for d in report["generalDiagnostics"]
+    ]
+    assert report["summary"]["errorCount"] == 0, messages[:20]
+    assert report["summary"]["warningCount"] == 0, messages[:20]
