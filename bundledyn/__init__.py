@@ -2,7 +2,7 @@
 
 import importlib.metadata
 
-from . import checks, lie
+from . import checks, identify, lie
 from ._dynamics import (
     BundleGeometry,
     bundle_geometry,
@@ -56,7 +56,7 @@ from ._solver._tableau import LieButcherTableau
 from ._solver._variational import VariationalMidpoint
 from ._state import State
 from ._systems._affine_body import AffineBody
-from ._systems._base import AbstractSystem
+from ._systems._base import AbstractInertialSystem, AbstractSystem
 from ._systems._generic import GenericSystem
 from ._systems._joints import (
     AbstractJoint,
@@ -83,6 +83,7 @@ __all__ = [
     "AbstractCentralGravity",
     "AbstractEffect",
     "AbstractFrame",
+    "AbstractInertialSystem",
     "AbstractJoint",
     "AbstractLieGroupSolver",
     "AbstractMetricJet",
@@ -119,6 +120,7 @@ __all__ = [
     "Gravity",
     "GravityGradient",
     "horizontal_lift",
+    "identify",
     "inertia_covariant_derivative",
     "Kinematics",
     "kinetic_covariant_derivative",

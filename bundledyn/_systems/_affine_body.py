@@ -1,6 +1,7 @@
 """An affinely deformable body: x = c + F X (seed 004, §4; DESIGN §2)."""
 
 import itertools
+from typing import ClassVar
 
 import equinox as eqx
 import jax
@@ -10,7 +11,7 @@ from jaxtyping import Array, Float
 
 from .. import lie
 from .._linalg import expm
-from ._base import AbstractSystem
+from ._base import AbstractInertialSystem
 from ._metric_jet import DenseMetricJet
 from ._validation import check_mass, check_shape, check_spd, checked_mass, checked_spd
 
@@ -184,7 +185,7 @@ def _stretch_fourth_derivatives_jvp(primals, tangents):
     return jax.jvp(jax.jacfwd(jax.jacfwd(jax.jacfwd(jax.jacfwd(stretch)))), primals, tangents)
 
 
-class AffineBody(AbstractSystem):
+class AffineBody(AbstractInertialSystem):
     r"""An affinely deformable body, $x = c + F X$ with $F = R\,U(q)$ (seed 004, §4, (4.3)).
 
     Kinetic energy $T = \tfrac12 m|\dot c|^2 + \tfrac12\operatorname{tr}(\dot F E \dot F^T)$ with
@@ -202,6 +203,7 @@ class AffineBody(AbstractSystem):
 
     mass: Float[Array, ""]
     second_moment: Float[Array, "3 3"]
+    fixed_centres: ClassVar[bool] = True
 
     def __init__(self, mass, second_moment):
         self.mass = jnp.asarray(mass, dtype=float)
@@ -236,6 +238,19 @@ class AffineBody(AbstractSystem):
         dK = P + jnp.swapaxes(P, 1, 2)
         zero = jnp.zeros((), q.dtype)
         return DenseMetricJet(self._metric_from(W), jax.vmap(lambda K: self._assemble(K, zero))(dK))
+
+    def pseudo_inertias(self):
+        E, m = self.second_moment, self.mass
+        zero = jnp.zeros((3, 1), E.dtype)
+        top = jnp.concatenate([E, zero], axis=1)
+        return jnp.concatenate([top, jnp.concatenate([zero.T, m[None, None]], axis=1)])[None]
+
+    def with_pseudo_inertias(self, P) -> "AffineBody":
+        """The body with the mass $P_{44}$ and the second moment about the centre of mass of
+        `P` (an offset centre in `P` is dropped: the section frame sits at the centre)."""
+        m, h = P[0, 3, 3], P[0, :3, 3]
+        E = P[0, :3, :3] - h[:, None] * h[None, :] / m
+        return eqx.tree_at(lambda b: (b.mass, b.second_moment), self, (m, E))
 
     def checked(self) -> "AffineBody":
         mass = checked_mass("AffineBody.mass", self.mass)

@@ -88,6 +88,28 @@ class AbstractSystem(eqx.Module):
         return jet.metric, jet.derivative()
 
 
+class AbstractInertialSystem(AbstractSystem):
+    r"""A system whose mass data are bodies' pseudo-inertias: the parameters identification fits.
+
+    Each body's ten inertial parameters are its 4×4 pseudo-inertia
+    $P = egin{bmatrix}\Sigma & mc\ mc^T & m\end{bmatrix}$ in its own frame
+    (`bundledyn.identify.pseudo_inertia`); the system's metric is linear in them.
+
+    `fixed_centres` is `True` for systems whose section frame sits at the centre of mass by
+    construction (the affine body): their $c$ is not a parameter.
+    """
+
+    fixed_centres: eqx.AbstractClassVar[bool]
+
+    @abc.abstractmethod
+    def pseudo_inertias(self) -> Float[Array, "n 4 4"]:
+        """The bodies' pseudo-inertias, shape `(n, 4, 4)`, in body order."""
+
+    @abc.abstractmethod
+    def with_pseudo_inertias(self, P: Float[Array, "n 4 4"]) -> "AbstractInertialSystem":
+        """The same system with the bodies' pseudo-inertias `P`, shape `(n, 4, 4)`."""
+
+
 def autodiff_metric_jet(system: AbstractSystem, q) -> DenseMetricJet:
     r"""The metric jet of any system by forward-mode autodiff of its `metric`.
 

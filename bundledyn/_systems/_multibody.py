@@ -1,6 +1,7 @@
 r"""Trees of rigid bodies with a floating base, vectorized over bodies."""
 
 import abc
+from typing import ClassVar
 
 import equinox as eqx
 import jax
@@ -10,9 +11,10 @@ from jaxtyping import Array, Float
 
 from .. import lie
 from .._linalg import einsum, matmul, take
-from ._base import AbstractSystem, autodiff_metric_jet
+from ._base import AbstractInertialSystem, autodiff_metric_jet
 from ._link import Link
 from ._mujoco_import import ModelParts, parts_from_mjcf, parts_from_urdf
+from ._pseudo_inertia import inertial_from_pseudo_inertia, pseudo_inertia
 from ._rigid_body import RigidBody, spatial_inertia
 from ._screws import pose, unit_screw_exp, unit_screws
 from ._tree import Tree, column_tables, tree_tables
@@ -20,7 +22,7 @@ from ._tree_metric import TreeMetricJet, composite_metric
 from ._validation import checked_inertia, checked_mass
 
 
-class AbstractMultibody(AbstractSystem):
+class AbstractMultibody(AbstractInertialSystem):
     r"""A tree of rigid bodies floating in space: what effects, pictures and identification
     read of a tree besides its metric.
 
@@ -33,6 +35,7 @@ class AbstractMultibody(AbstractSystem):
     inertia: eqx.AbstractVar[Float[Array, "n 3 3"]]
     names: eqx.AbstractVar[tuple[str, ...]]
     tables: eqx.AbstractVar[Tree]
+    fixed_centres: ClassVar[bool] = False
 
     @property
     def num_bodies(self) -> int:
@@ -80,6 +83,9 @@ class AbstractMultibody(AbstractSystem):
 
         `(r0, Z0)`, shapes `(4, 4)` and `(6, d)`.
         """
+
+    def pseudo_inertias(self):
+        return pseudo_inertia(self.mass, self.com, self.inertia)
 
     def bodies(self) -> tuple[RigidBody, ...]:
         """The bodies as `RigidBody` objects (base first)."""
@@ -308,6 +314,10 @@ class Multibody(AbstractMultibody):
         place = (cols[..., None] == np.arange(self.shape_dim)).astype(values.dtype)
         return jnp.einsum("klm,kin,kilx->mxn", place, place, values)
 
+    def with_pseudo_inertias(self, P) -> "Multibody":
+        m, c, J = inertial_from_pseudo_inertia(P)
+        return eqx.tree_at(lambda b: (b.mass, b.com, b.inertia), self, (m, c, J))
+
     def checked(self) -> "Multibody":
         mass = checked_mass("Multibody.mass", self.mass)
         inertia = checked_inertia("Multibody.inertia", self.inertia)
@@ -444,6 +454,9 @@ class Resectioned(AbstractMultibody):
 
     def metric_jet(self, q):
         return autodiff_metric_jet(self, q)
+
+    def with_pseudo_inertias(self, P) -> "Resectioned":
+        return Resectioned(self.tree.with_pseudo_inertias(P), self.section)
 
     def checked(self) -> "Resectioned":
         return Resectioned(self.tree.checked(), self.section)

@@ -1,12 +1,15 @@
 r"""A single rigid body: the simplest system, a trivial bundle with no shape."""
 
+from typing import ClassVar
+
 import equinox as eqx
 import jax.numpy as jnp
 from jaxtyping import Array, Float
 
 from .. import lie
-from ._base import AbstractSystem
+from ._base import AbstractInertialSystem
 from ._metric_jet import DenseMetricJet
+from ._pseudo_inertia import inertial_from_pseudo_inertia, pseudo_inertia
 from ._validation import (
     check_inertia,
     check_mass,
@@ -44,7 +47,7 @@ def spatial_inertia(mass, com, inertia):
     return jnp.concatenate([top, bottom], axis=-2)
 
 
-class RigidBody(AbstractSystem):
+class RigidBody(AbstractInertialSystem):
     r"""A rigid body: mass, centre of mass and rotational inertia in its own frame.
 
     As a system it moves freely with no shape ($d = 0$): the section frame is the body
@@ -62,6 +65,7 @@ class RigidBody(AbstractSystem):
     mass: Float[Array, ""]
     com: Float[Array, "3"]
     inertia: Float[Array, "3 3"]
+    fixed_centres: ClassVar[bool] = False
 
     def __init__(self, mass, com, inertia):
         self.mass = jnp.asarray(mass, dtype=float)
@@ -89,6 +93,13 @@ class RigidBody(AbstractSystem):
     def metric_jet(self, q):
         G = self.spatial_inertia()
         return DenseMetricJet(G, jnp.zeros((0, 6, 6), G.dtype))
+
+    def pseudo_inertias(self):
+        return pseudo_inertia(self.mass, self.com, self.inertia)[None]
+
+    def with_pseudo_inertias(self, P) -> "RigidBody":
+        m, c, J = inertial_from_pseudo_inertia(P[0])
+        return eqx.tree_at(lambda b: (b.mass, b.com, b.inertia), self, (m, c, J))
 
     def checked(self) -> "RigidBody":
         mass = checked_mass("RigidBody.mass", self.mass)
