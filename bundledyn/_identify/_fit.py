@@ -1,0 +1,257 @@
+r"""`fit`: identify a scene's parameters from measured motion, and say what the data determines.
+
+The steps: a warm start by equation error (`warm_start`: spatial momentum and energy are
+linear in the inertial parameters), then output error by multiple shooting
+(`ShootingProblem`) minimized by Levenberg–Marquardt with exact Jacobians
+(`levenberg_marquardt`), optionally after first-order steps of an optax optimizer, and
+the identifiability analysis of the solution (`analyse`).
+"""
+
+import dataclasses
+import time
+
+import diffrax
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from .._scene import Scene
+from .._simulate import simulate
+from .._state import State
+from ._data import Inputs, Measurements
+from ._gauge import AbstractGauge
+from ._identifiability import Identifiability, analyse, theta_information
+from ._levenberg_marquardt import levenberg_marquardt
+from ._parameters import Parameters
+from ._regressor import warm_start as regressor_warm_start
+from ._shooting import ShootingProblem, Windows, window_starts
+
+__all__ = ["FitResult", "fit"]
+
+
+@dataclasses.dataclass(frozen=True)
+class FitResult:
+    r"""The outcome of `fit`.
+
+    **Fields:**
+
+    - `scene`: the fitted scene (the nominal scene with the fitted parameters; the known
+      inputs are not in it).
+    - `theta`: the fitted parameter vector; `parameters`: the `Parameters` it belongs to.
+    - `identifiability`: the `Identifiability` report (singular values, undetermined
+      directions in physical terms, standard errors).
+    - `gauge`: what fixed the mass scale, in words.
+    - `costs`: the merit ½‖r‖² + ½‖c‖² at each accepted iterate (the first at the start).
+    - `warm_start`: $\theta$ from the equation-error warm start, or `None`.
+    - `window_states`: the fitted (or measured) initial states of the windows, `(K, n_s)`.
+    - `iterates`: $\theta$ at the start and after each accepted step.
+    - `stats`: evaluations of the residuals and Jacobian, window solves, accepted steps,
+      whether Levenberg–Marquardt converged, and the seconds taken.
+    """
+
+    scene: Scene
+    theta: jax.Array
+    parameters: Parameters
+    identifiability: Identifiability
+    gauge: str
+    costs: list
+    warm_start: jax.Array | None
+    window_states: jax.Array
+    iterates: list
+    stats: dict
+
+    def estimates(self):
+        """The physical parameters with standard errors (`Identifiability.estimates`)."""
+        return self.identifiability.estimates
+
+    def report(self) -> str:
+        """A printable summary: the gauge, the convergence, the estimates with 95 %
+        intervals, and what the data leaves undetermined."""
+        ident = self.identifiability
+        lines = [
+            f"Identification of {len(self.parameters.bodies)} bodies "
+            f"({self.parameters.size} parameters); gauge: {self.gauge}.",
+            f"  {self.stats['steps']} Levenberg–Marquardt steps, {self.stats['evaluations']} "
+            f"Jacobians, {self.stats['window_solves']} window solves, "
+            f"{self.stats['seconds']:.1f} s; cost {self.costs[0]:.3e} -> {self.costs[-1]:.3e}"
+            f"{'' if self.stats['converged'] else ' (not converged)'}.",
+            f"  noise scale {ident.noise_scale:.3g} (1 when the stated noise levels are right); "
+            f"condition number {ident.condition_number:.3g}.",
+            f"  {'parameter':<24}{'estimate':>14}{'± 95 %':>14}",
+        ]
+        for e in ident.estimates:
+            interval = f"{1.96 * e.std:14.3g}" if e.determined else f"{'undetermined':>14}"
+            lines.append(f"  {e.name:<24}{e.value:14.6g}{interval}")
+        if ident.undetermined:
+            lines.append("  The data do not determine:")
+            lines += [f"    - {u}" for u in ident.undetermined]
+        else:
+            lines.append("  The data determine every parameter.")
+        return "\n".join(lines)
+
+
+def _window_starts(windows: Windows, parameters: Parameters, measurements: Measurements, guess):
+    """The windows' reference poses and initial states: measured where measured, from a
+    nominal trajectory `guess` otherwise."""
+    starts = window_starts(measurements.ts, windows)
+    d = parameters.scene.system.shape_dim
+    take = lambda measured, guessed: (guessed if measured is None else measured)[starts]
+    g = take(measurements.pose, guess.g)
+    states = jnp.concatenate(
+        [
+            jnp.zeros((starts.size, 6), g.dtype),
+            jnp.reshape(take(measurements.q, guess.q), (starts.size, d)),
+            take(measurements.xi, guess.xi),
+            jnp.reshape(take(measurements.qdot, guess.qdot), (starts.size, d)),
+        ],
+        axis=1,
+    )
+    return g, states
+
+
+def _nominal_trajectory(scene: Scene, measurements: Measurements, initial_state: State | None):
+    states = measurements.states
+    if states is not None:
+        return states
+    if initial_state is None:
+        raise ValueError(
+            "the measurements do not hold the whole state (pose, q, xi, qdot): give "
+            "`initial_state`, an estimate of the state at the first sample, from which the "
+            "nominal model is simulated to start the unmeasured parts of the windows."
+        )
+    ts = measurements.ts
+    traj = simulate(scene, initial_state, ts[-1], t0=ts[0], saveat=diffrax.SaveAt(ts=ts))
+    return jax.vmap(State)(traj.g, traj.q, traj.xi, traj.qdot)
+
+
+def fit(
+    parameters: Parameters,
+    measurements: Measurements,
+    *,
+    gauge: AbstractGauge,
+    inputs: Inputs | None = None,
+    windows: Windows | None = None,
+    warm_start: bool = True,
+    initial_state: State | None = None,
+    optimizer=None,
+    optimizer_steps: int = 0,
+    max_steps: int = 50,
+    progress: bool = False,
+) -> FitResult:
+    """Identify the free parameters of a scene from measured motion.
+
+    **Arguments:**
+
+    - `parameters`: the `Parameters`: the nominal scene and what is free.
+    - `measurements`: the `Measurements`.
+    - `gauge`: what fixes the mass scale (`KnownMass`, `KnownBodies` or `MeasuredInputs`):
+      required, because free motion alone does not determine it.
+    - `inputs`: the known forces (`Inputs`), added to the scene as effects.
+    - `windows`: the shooting `Windows` (default: one window per 50 sample intervals,
+      fitted window states).
+    - `warm_start`: start from the equation-error solution (`warm_start`) when the
+      measurements hold the whole state; otherwise from the nominal parameters.
+    - `initial_state`: the state at the first sample, needed when a channel of the state
+      is not measured (the windows' unmeasured parts start from the nominal motion).
+    - `optimizer`, `optimizer_steps`: an optax optimizer and how many first-order steps it
+      takes before Levenberg–Marquardt (with the exact gradient $J^Tr + C^Tc$).
+    - `max_steps`: the most Levenberg–Marquardt evaluations.
+    - `progress`: print each accepted step.
+
+    **Returns:**
+
+    A `FitResult`.
+    """
+    begin = time.perf_counter()
+    gauge.check(parameters, inputs)
+    n = int(np.shape(measurements.ts)[0])
+    windows = Windows(count=max(1, (n - 1) // 50)) if windows is None else windows
+    extra = [] if inputs is None else inputs.effects()
+    theta0 = parameters.initial()
+    start = None
+    if warm_start and measurements.states is not None:
+        start = regressor_warm_start(parameters, measurements, inputs, gauge)
+        theta0 = start
+    guess = _nominal_trajectory(
+        eqx.tree_at(
+            lambda s: s.effects, parameters.to_scene(theta0), [*parameters.scene.effects, *extra]
+        ),
+        measurements,
+        initial_state,
+    )
+    references, window_states = _window_starts(windows, parameters, measurements, guess)
+    problem = ShootingProblem(parameters, extra, measurements, windows, references)
+    z0 = jnp.concatenate([theta0, window_states.reshape(-1)]) if windows.fit_states else theta0
+    evaluate = _evaluator(problem, gauge, window_states)
+    z0 = _first_order(lambda z: evaluate(problem, z), z0, optimizer, optimizer_steps)
+    iterates = [z0[: parameters.size]]
+
+    def record(step, z, cost, damping):
+        iterates.append(z[: parameters.size])
+        if progress:
+            print(f"  step {step}: cost {cost:.6e}, damping {damping:.1e}", flush=True)
+
+    solution = levenberg_marquardt(
+        lambda z: evaluate(problem, z), z0, max_steps=max_steps, callback=record
+    )
+    theta, fitted_states = problem.split(solution.z)
+    information = theta_information(
+        solution.jacobian, solution.constraint_jacobian, parameters.size
+    )
+    data_rows = solution.residuals.shape[0] - gauge.residuals(parameters, theta).shape[0]
+    chi2 = float(jnp.sum(solution.residuals[:data_rows] ** 2))
+    dof = data_rows - (solution.z.shape[0] - solution.defects.shape[0])
+    return FitResult(
+        scene=parameters.to_scene(theta),
+        theta=theta,
+        parameters=parameters,
+        identifiability=analyse(parameters, theta, information, chi2, dof),
+        gauge=gauge.describe(parameters),
+        costs=solution.costs,
+        warm_start=start,
+        window_states=fitted_states if windows.fit_states else window_states,
+        iterates=iterates,
+        stats=dict(
+            evaluations=solution.evaluations,
+            window_solves=solution.evaluations * windows.count,
+            steps=solution.steps,
+            converged=solution.converged,
+            seconds=time.perf_counter() - begin,
+        ),
+    )
+
+
+def _evaluator(problem: ShootingProblem, gauge: AbstractGauge, window_states):
+    """The compiled `(r, J, c, C)` of the problem with the gauge's pseudo-measurements."""
+
+    @eqx.filter_jit
+    def evaluate(problem, z):
+        r, J, c, C = problem.residuals_and_jacobian(z, window_states)
+        P = problem.parameters.size
+
+        def extra(theta):
+            return gauge.residuals(problem.parameters, theta)
+
+        g = extra(z[:P])
+        G = jax.jacfwd(extra)(z[:P])
+        G = jnp.concatenate([G, jnp.zeros((G.shape[0], z.shape[0] - P), G.dtype)], axis=1)
+        return jnp.concatenate([r, g]), jnp.concatenate([J, G]), c, C
+
+    return evaluate
+
+
+def _first_order(evaluate, z0, optimizer, steps: int):
+    """`steps` steps of an optax optimizer on the merit, with the exact gradient."""
+    if optimizer is None or steps == 0:
+        return z0
+    import optax
+
+    state = optimizer.init(z0)
+    z = z0
+    for _ in range(steps):
+        r, J, c, C = evaluate(z)
+        gradient = J.T @ r + C.T @ c
+        updates, state = optimizer.update(gradient, state, z)
+        z = optax.apply_updates(z, updates)
+    return z

@@ -1,0 +1,152 @@
+r"""The fitted parameters of a scene as one vector of unconstrained reals.
+
+Each free body contributes its log-Cholesky coordinates (ten; seven for a body whose centre
+of mass is fixed at the section origin), so that every vector is a physical system; each
+free joint constant (the stiffness of the scene's `ShapeSpring`, the damping of its
+`ShapeDamper`) contributes its logarithm, so that it stays positive.
+"""
+
+import equinox as eqx
+import jax.numpy as jnp
+import numpy as np
+
+from .._effects import ShapeDamper, ShapeSpring
+from .._scene import Scene
+from .._systems._base import AbstractInertialSystem
+from .._systems._multibody import AbstractMultibody
+from .._systems._pseudo_inertia import (
+    log_cholesky_from_pseudo_inertia,
+    pseudo_inertia_from_log_cholesky,
+)
+
+__all__ = ["Parameters"]
+
+_JOINT_CONSTANTS = {"stiffness": (ShapeSpring, "stiffness"), "damping": (ShapeDamper, "c")}
+_COORDINATES = ("alpha", "d1", "d2", "d3", "s12", "s23", "s13", "t1", "t2", "t3")
+
+
+def _body_names(system) -> tuple[str, ...]:
+    if isinstance(system, AbstractMultibody):
+        return system.names
+    return ("body",)
+
+
+def _effect_index(scene: Scene, kind) -> int:
+    matches = [i for i, e in enumerate(scene.effects) if isinstance(e, kind)]
+    if not matches:
+        raise ValueError(f"the scene has no {kind.__name__} whose constant could be fitted.")
+    return matches[0]
+
+
+class Parameters(eqx.Module):
+    r"""Which parameters of a scene an identification fits, as a vector $\theta$ of reals.
+
+    **Arguments:**
+
+    - `scene`: the nominal scene: its system (an `AbstractInertialSystem`) and effects give
+      the structure, the known values and the starting point.
+    - `bodies`: the bodies whose inertial parameters are free, by index or name (static;
+      default all). The others keep the nominal values.
+    - `joint_constants`: which joint constants are free (static): `"stiffness"` (of the
+      scene's first `ShapeSpring`) and `"damping"` (of its first `ShapeDamper`); each must
+      be positive in the nominal scene (a scalar or one value per coordinate).
+    """
+
+    scene: Scene
+    bodies: tuple[int, ...] = eqx.field(static=True)
+    joint_constants: tuple[str, ...] = eqx.field(static=True)
+
+    def __init__(self, scene: Scene, *, bodies=None, joint_constants=()):
+        system = scene.system
+        if not isinstance(system, AbstractInertialSystem):
+            raise ValueError(
+                f"{type(system).__name__} has no inertial parameters to fit; identification "
+                "fits RigidBody, Multibody and AffineBody systems."
+            )
+        names = _body_names(system)
+        chosen = range(len(names)) if bodies is None else bodies
+        indices = tuple(names.index(b) if isinstance(b, str) else int(b) for b in chosen)
+        for b in indices:
+            if not 0 <= b < len(names):
+                raise ValueError(f"`bodies` names body {b}; the system has bodies {names}.")
+        for name in joint_constants:
+            if name not in _JOINT_CONSTANTS:
+                raise ValueError(f"unknown joint constant {name!r}; use 'stiffness' or 'damping'.")
+            kind, field = _JOINT_CONSTANTS[name]
+            value = np.asarray(getattr(scene.effects[_effect_index(scene, kind)], field))
+            if value.ndim > 1 or not np.all(value > 0):
+                raise ValueError(
+                    f"the nominal {name} must be positive, a scalar or one value per "
+                    f"coordinate, to be fitted (as its logarithm); got {value}."
+                )
+        self.scene = scene
+        self.bodies = tuple(sorted(set(indices)))
+        self.joint_constants = tuple(joint_constants)
+
+    @property
+    def body_names(self) -> tuple[str, ...]:
+        """The names of all the system's bodies (free or not)."""
+        return _body_names(self.scene.system)
+
+    @property
+    def _coordinates(self) -> int:
+        return 7 if self.scene.system.fixed_centres else 10
+
+    def _constant(self, name):
+        kind, field = _JOINT_CONSTANTS[name]
+        return getattr(self.scene.effects[_effect_index(self.scene, kind)], field)
+
+    def initial(self):
+        r"""$\theta$ of the nominal scene, shape `(size,)`."""
+        P = self.scene.system.pseudo_inertias()[np.array(self.bodies, int)]
+        theta = log_cholesky_from_pseudo_inertia(P)[:, : self._coordinates].reshape(-1)
+        logs = [jnp.log(jnp.atleast_1d(self._constant(n))) for n in self.joint_constants]
+        return jnp.concatenate([theta, *logs])
+
+    @property
+    def size(self) -> int:
+        """The number of free parameters."""
+        constants = sum(np.size(self._constant(n)) for n in self.joint_constants)
+        return len(self.bodies) * self._coordinates + int(constants)
+
+    def labels(self) -> tuple[str, ...]:
+        r"""A name for each entry of $\theta$: body and log-Cholesky coordinate, or constant."""
+        names = _body_names(self.scene.system)
+        labels = [f"{names[b]}.{c}" for b in self.bodies for c in _COORDINATES[: self._coordinates]]
+        for n in self.joint_constants:
+            size = np.size(self._constant(n))
+            labels += [f"log {n}"] if size == 1 else [f"log {n}[{k}]" for k in range(size)]
+        return tuple(labels)
+
+    def pseudo_inertias(self, theta):
+        r"""The free bodies' pseudo-inertias at $\theta$, shape `(k, 4, 4)`."""
+        k, n = len(self.bodies), self._coordinates
+        coordinates = theta[: k * n].reshape(k, n)
+        if n < 10:
+            coordinates = jnp.concatenate([coordinates, jnp.zeros((k, 10 - n), theta.dtype)], 1)
+        return pseudo_inertia_from_log_cholesky(coordinates)
+
+    def joint_constant_values(self, theta) -> dict:
+        r"""The free joint constants at $\theta$ (positive), by name."""
+        offset, values = len(self.bodies) * self._coordinates, {}
+        for n in self.joint_constants:
+            nominal = self._constant(n)
+            size = int(np.size(nominal))
+            values[n] = jnp.exp(theta[offset : offset + size]).reshape(jnp.shape(nominal))
+            offset += size
+        return values
+
+    def with_joint_constant(self, scene: Scene, name: str, value) -> Scene:
+        """`scene` with the joint constant `name` (`"stiffness"`, `"damping"`) set to `value`."""
+        kind, field = _JOINT_CONSTANTS[name]
+        index = _effect_index(scene, kind)
+        return eqx.tree_at(lambda s: getattr(s.effects[index], field), scene, value)
+
+    def to_scene(self, theta) -> Scene:
+        r"""The scene at $\theta$: the nominal scene with the free parameters replaced."""
+        system = self.scene.system
+        P = system.pseudo_inertias().at[np.array(self.bodies, int)].set(self.pseudo_inertias(theta))
+        scene = eqx.tree_at(lambda s: s.system, self.scene, system.with_pseudo_inertias(P))
+        for name, value in self.joint_constant_values(theta).items():
+            scene = self.with_joint_constant(scene, name, value)
+        return scene

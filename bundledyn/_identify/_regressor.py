@@ -1,0 +1,179 @@
+r"""The warm start: equation error on momentum and energy, linear in the inertial parameters.
+
+The metric is linear in the bodies' pseudo-inertias $P_b$ (and the armature), so with the
+measured states $(g, q, \xi, \dot q)$ at the samples, the spatial momentum in the Galilean
+frame $\mu = \operatorname{Ad}^*_g G(q)_{\xi\cdot}[\xi; \dot q]$ and the energy
+$E = T + \Pi$ are affine in the unknowns $\pi$ (the entries of the free $P_b$, the free
+joint constants). Their balances over the record,
+
+$$\mu_k - \int_{t_0}^{t_k} \operatorname{Ad}^*_g F_b\,dt = \bar\mu,\qquad
+  E_k - \int_{t_0}^{t_k} (F_b\cdot\xi + Q_H\cdot\dot q)_{\text{non-conservative}}\,dt = \bar E,$$
+
+(seed 004, (2.6)–(2.7) with the scene's forces: the wrench of every effect moves the
+momentum, the work of the non-conservative ones the energy) are linear in
+$(\pi, \bar\mu, \bar E)$ with the unknown constants $\bar\mu, \bar E$: a convex least-squares
+problem (the momentum regressor of a free-floating system), solved with the gauge's
+pseudo-measurements and the integrals by the trapezoidal rule. Its solution is projected
+onto physical bodies (each $P_b$'s eigenvalues floored at a small fraction of its largest)
+and returned as log-Cholesky coordinates. Directions the balances do not determine keep
+their nominal values (the minimum-norm correction).
+"""
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from .. import lie
+from .._effects import Kinematics
+from .._geometry import kinetic_energy
+from .._systems._pseudo_inertia import log_cholesky_from_pseudo_inertia
+from ._data import Inputs, Measurements
+from ._gauge import AbstractGauge
+from ._parameters import Parameters
+
+__all__ = ["warm_start"]
+
+_ENTRIES = ((0, 0), (1, 1), (2, 2), (0, 1), (0, 2), (1, 2), (0, 3), (1, 3), (2, 3), (3, 3))
+_FLOOR = 1e-6  # smallest eigenvalue of a projected pseudo-inertia, relative to its largest
+
+
+def _entries(P):
+    return jnp.stack([P[..., i, j] for i, j in _ENTRIES], axis=-1)
+
+
+def _matrix(entries):
+    P = jnp.zeros((*entries.shape[:-1], 4, 4), entries.dtype)
+    for k, (i, j) in enumerate(_ENTRIES):
+        P = P.at[..., i, j].set(entries[..., k]).at[..., j, i].set(entries[..., k])
+    return P
+
+
+def _project(P, fixed_centre: bool):
+    """The nearest positive definite pseudo-inertia (eigenvalues floored), centre kept at 0
+    for a fixed centre."""
+    if fixed_centre:
+        P = P.at[..., :3, 3].set(0.0).at[..., 3, :3].set(0.0)
+    w, V = jnp.linalg.eigh(P)
+    w = jnp.maximum(w, _FLOOR * jnp.max(w, axis=-1, keepdims=True))
+    return (V * w[..., None, :]) @ jnp.swapaxes(V, -1, -2)
+
+
+def _cumulative_trapezoid(ts, values):
+    increments = 0.5 * (values[1:] + values[:-1]) * jnp.diff(ts)[:, None]
+    return jnp.concatenate([jnp.zeros_like(values[:1]), jnp.cumsum(increments, axis=0)])
+
+
+class _Linear(eqx.Module):
+    """The scene as an affine function of the linear unknowns π (free P entries, constants)."""
+
+    parameters: Parameters
+    extra_effects: list
+
+    def scene(self, pi):
+        params = self.parameters
+        k = len(params.bodies)
+        P = (
+            params.scene.system.pseudo_inertias()
+            .at[np.array(params.bodies, int)]
+            .set(_matrix(pi[: 10 * k].reshape(k, 10)))
+        )
+        scene = eqx.tree_at(
+            lambda s: s.system, params.scene, params.scene.system.with_pseudo_inertias(P)
+        )
+        offset = 10 * k
+        theta = params.initial()
+        for name, nominal in params.joint_constant_values(theta).items():
+            size = int(np.size(nominal))
+            value = pi[offset : offset + size].reshape(jnp.shape(nominal))
+            scene = params.with_joint_constant(scene, name, value)
+            offset += size
+        return eqx.tree_at(lambda s: s.effects, scene, [*scene.effects, *self.extra_effects])
+
+    def balances(self, pi, t, g, q, xi, qdot):
+        """Momentum (Galilean frame), energy, momentum rate and non-conservative power at one sample."""
+        scene = self.scene(pi)
+        system = scene.system
+        velocity = jnp.concatenate([xi, qdot])
+        momentum = lie.coAd(g) @ (system.metric(q)[:6] @ velocity)
+        energy = kinetic_energy(system, q, xi, qdot)
+        kin = Kinematics(t, g, q, xi, qdot)
+        rate, power = jnp.zeros(6, g.dtype), jnp.zeros((), g.dtype)
+        for effect in scene.effects:
+            F, Q = effect.generalized_force(system, kin)
+            rate = rate + lie.coAd(g) @ F
+            potential = effect.potential(system, t, g, q)
+            if potential is None:
+                power = power + F @ xi + Q @ qdot
+            else:
+                energy = energy + potential
+        return momentum, energy, rate, power
+
+
+def warm_start(
+    parameters: Parameters, measurements: Measurements, inputs: Inputs | None, gauge: AbstractGauge
+):
+    r"""The equation-error estimate of $\theta$ (see the module docstring).
+
+    **Arguments:**
+
+    - `parameters`, `measurements` (with the whole state measured), `inputs`, `gauge`: as
+      in `fit`.
+
+    **Returns:**
+
+    $\theta$, projected onto physical bodies.
+    """
+    linear = _Linear(parameters, [] if inputs is None else inputs.effects())
+    theta0 = parameters.initial()
+    pi0 = jnp.concatenate(
+        [
+            _entries(parameters.pseudo_inertias(theta0)).reshape(-1),
+            *[jnp.ravel(v) for v in parameters.joint_constant_values(theta0).values()],
+        ]
+    )
+    solution = _solve(linear, gauge, pi0, measurements)
+    k = len(parameters.bodies)
+    P = _project(_matrix(solution[: 10 * k].reshape(k, 10)), parameters.scene.system.fixed_centres)
+    theta = log_cholesky_from_pseudo_inertia(P)[
+        :, : 7 if parameters.scene.system.fixed_centres else 10
+    ]
+    constants = jnp.log(jnp.maximum(solution[10 * k :], _FLOOR * jnp.abs(pi0[10 * k :])))
+    return jnp.concatenate([theta.reshape(-1), constants])
+
+
+@eqx.filter_jit
+def _solve(linear: _Linear, gauge: AbstractGauge, pi0, measurements: Measurements):
+    states = measurements.states
+    assert states is not None
+    ts = measurements.ts
+
+    def residuals(unknowns):
+        pi, mu_bar, energy_bar = unknowns[:-7], unknowns[-7:-1], unknowns[-1]
+        momentum, energy, rate, power = jax.vmap(linear.balances, (None, 0, 0, 0, 0, 0))(
+            pi, ts, states.g, states.q, states.xi, states.qdot
+        )
+        momentum_error = momentum - _cumulative_trapezoid(ts, rate) - mu_bar
+        energy_error = energy - _cumulative_trapezoid(ts, power[:, None])[:, 0] - energy_bar
+        return momentum_error, energy_error
+
+    momentum0, energy0 = jax.vmap(linear.balances, (None, 0, 0, 0, 0, 0))(
+        pi0, ts, states.g, states.q, states.xi, states.qdot
+    )[:2]
+    unknowns0 = jnp.concatenate([pi0, jnp.mean(momentum0, axis=0), jnp.mean(energy0)[None]])
+    momentum_scale = jnp.sqrt(jnp.mean(momentum0**2)) + jnp.finfo(pi0.dtype).tiny
+    energy_scale = jnp.sqrt(jnp.mean(energy0**2)) + jnp.finfo(pi0.dtype).tiny
+
+    def weighted(unknowns):
+        momentum_error, energy_error = residuals(unknowns)
+        k = len(linear.parameters.bodies)
+        masses = unknowns[: 10 * k].reshape(k, 10)[:, 9]  # P_44, linear in π
+        gauge_rows = gauge.mass_rows(linear.parameters, masses)
+        return jnp.concatenate(
+            [momentum_error.reshape(-1) / momentum_scale, energy_error / energy_scale, gauge_rows]
+        )
+
+    e0 = weighted(unknowns0)
+    E = jax.jacfwd(weighted)(unknowns0)
+    step = jnp.linalg.lstsq(E, -e0)[0]
+    return (unknowns0 + step)[:-7]

@@ -1,0 +1,261 @@
+r"""Output error by multiple shooting: weighted residuals of windows and their exact Jacobian.
+
+The horizon's samples are cut into $K$ windows of $M$ sample intervals. Window $k$ starts
+at its first sample from a state $s_k$ and is integrated with the scene at the parameters
+$\theta$ (`RKMK87`, fixed steps onto the sample times); its residuals are the measured
+channels minus their predictions, each divided by its noise level. With fitted window
+states (multiple shooting) the decision vector is $z = (\theta, s_1, \dots, s_K)$ and each
+window also has continuity residuals, its predicted end state minus $s_{k+1}$, weighted far
+above the data so that the fitted motion is one trajectory; with measured window states
+only $\theta$ is fitted. $K = 1$ is single shooting.
+
+A window state is $s = (\delta, q, \xi, \dot q)$ with the pose $\bar g\exp\hat\delta$ about a
+reference pose $\bar g$ (the measured pose, or a nominal simulation's). The Jacobian is
+exact, by forward mode (`diffrax.ForwardMode`) over $(\theta, s_k)$ window by window: the
+windows only couple through the continuity rows, so the Jacobian is block sparse and each
+window carries only its own tangents.
+"""
+
+import diffrax
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from .. import lie
+from .._scene import Scene
+from .._simulate import simulate
+from .._solver._rkmk import RKMK87
+from .._state import State
+from .._systems._multibody import AbstractMultibody
+from ._data import Measurements, Noise
+from ._parameters import Parameters
+
+__all__ = ["Windows", "ShootingProblem"]
+
+
+class Windows(eqx.Module):
+    """How the horizon is cut into shooting windows.
+
+    **Arguments:**
+
+    - `count`: the number of windows $K$ (static; 1 is single shooting).
+    - `fit_states`: whether the windows' initial states are fitted with continuity
+      between windows (multiple shooting, the default), or held at the measured states
+      (static; needs the pose, twist, shape and shape velocity measured).
+    - `substeps`: `RKMK87` steps per sample interval (static).
+    - `continuity`: the continuity residuals' standard deviation as a fraction of the
+      channels' noise levels; small, so that the windows join into one motion.
+    """
+
+    count: int = eqx.field(static=True, default=1)
+    fit_states: bool = eqx.field(static=True, default=True)
+    substeps: int = eqx.field(static=True, default=1)
+    continuity: float = 1e-3
+
+    def __check_init__(self):
+        if self.count < 1 or self.substeps < 1:
+            raise ValueError("`Windows.count` and `Windows.substeps` must be positive.")
+
+
+def _state_size(d: int) -> int:
+    return 12 + 2 * d
+
+
+def _state_of(s, g_ref, d):
+    r"""The `State` of a window state $s = (\delta, q, \xi, \dot q)$ about `g_ref`."""
+    return State(g_ref @ lie.se3_exp(s[:6]), s[6 : 6 + d], s[6 + d : 12 + d], s[12 + d :])
+
+
+def _pose_residual(g_pred, g_meas, noise: Noise):
+    rotation = lie.so3_log(g_meas[..., :3, :3].T @ g_pred[..., :3, :3]) / noise.rotation
+    position = (g_pred[..., :3, 3] - g_meas[..., :3, 3]) / noise.position
+    return jnp.concatenate([rotation, position])
+
+
+def _grid(ts, count: int, substeps: int):
+    """Per window, the sample index (clipped) and the validity of each of its M + 1
+    samples, and the uniform times of its steps; M sample intervals per window."""
+    ts = np.asarray(ts)
+    n = ts.size
+    M = -(-(n - 1) // count)
+    dt = (ts[-1] - ts[0]) / (n - 1)
+    if not np.allclose(np.diff(ts), dt, rtol=1e-6, atol=0.0):
+        raise ValueError("shooting windows need uniformly sampled measurements.")
+    index = np.arange(count)[:, None] * M + np.arange(M + 1)[None, :]
+    last = np.zeros((count, M + 1), bool)
+    last[-1, -1] = True
+    measured = (index < n) & ((np.arange(M + 1) < M)[None, :] | last)
+    steps = np.arange(count)[:, None] * M * substeps + np.arange(M * substeps + 1)[None, :]
+    return np.minimum(index, n - 1), measured, ts[0] + dt * steps / substeps
+
+
+def window_starts(ts, windows: Windows) -> np.ndarray:
+    """The sample index at which each window starts, `(K,)`."""
+    return _grid(ts, windows.count, windows.substeps)[0][:, 0]
+
+
+class ShootingProblem(eqx.Module):
+    r"""The weighted residuals of the windows and their exact, block-sparse Jacobian.
+
+    **Arguments:**
+
+    - `parameters`: the `Parameters` (the nominal scene and what is free).
+    - `extra_effects`: effects added to the scene at every $\theta$ (the known inputs).
+    - `measurements`: the `Measurements`.
+    - `windows`: the `Windows`.
+    - `references`: the windows' reference poses $\bar g$, `(K, 4, 4)`.
+    """
+
+    parameters: Parameters
+    extra_effects: list
+    measurements: Measurements
+    windows: Windows
+    references: jax.Array
+    sample_index: jax.Array
+    measured: jax.Array
+    step_times: jax.Array
+
+    def __init__(self, parameters, extra_effects, measurements, windows, references):
+        self.parameters = parameters
+        self.extra_effects = list(extra_effects)
+        self.measurements = measurements
+        self.windows = windows
+        self.references = jnp.asarray(references)
+        index, measured, times = _grid(measurements.ts, windows.count, windows.substeps)
+        self.sample_index = jnp.asarray(index)
+        self.measured = jnp.asarray(measured)
+        self.step_times = jnp.asarray(times, dtype=float)
+
+    def scene(self, theta) -> Scene:
+        r"""The scene at $\theta$, with the known inputs."""
+        scene = self.parameters.to_scene(theta)
+        return eqx.tree_at(lambda s: s.effects, scene, [*scene.effects, *self.extra_effects])
+
+    def _predicted_residuals(self, system, states, k_index, measured):
+        """The weighted residuals of the measured channels at one window's samples."""
+        m, noise = self.measurements, self.measurements.noise
+        parts = []
+        if m.pose is not None:
+            parts.append(jax.vmap(_pose_residual, (0, 0, None))(states.g, m.pose[k_index], noise))
+        if m.q is not None:
+            parts.append((states.q - m.q[k_index]) / noise.q)
+        if m.xi is not None:
+            scale = jnp.array([noise.angular_velocity] * 3 + [noise.linear_velocity] * 3)
+            parts.append((states.xi - m.xi[k_index]) / scale)
+        if m.qdot is not None:
+            parts.append((states.qdot - m.qdot[k_index]) / noise.qdot)
+        if m.body_poses is not None:
+            assert isinstance(system, AbstractMultibody)
+            bodies = np.array(m.bodies, int)
+
+            def body_residuals(state, measured_poses):
+                poses = state.g @ system.body_poses(state.q)[bodies]
+                return jax.vmap(_pose_residual, (0, 0, None))(poses, measured_poses, noise)
+
+            parts.append(
+                jax.vmap(body_residuals)(states, m.body_poses[k_index]).reshape(len(k_index), -1)
+            )
+        r = jnp.concatenate(parts, axis=1)
+        return jnp.where(measured[:, None], r, 0.0).reshape(-1)
+
+    def _continuity(self, end: State, s_next, g_ref_next):
+        """Weighted continuity residual: the window's end state minus the next window's start."""
+        d = end.q.shape[0]
+        start = _state_of(s_next, g_ref_next, d)
+        noise, c = self.measurements.noise, self.windows.continuity
+        scale = jnp.concatenate(
+            [
+                jnp.full(3, noise.rotation), jnp.full(3, noise.position), jnp.full(d, noise.q),
+                jnp.full(3, noise.angular_velocity), jnp.full(3, noise.linear_velocity),
+                jnp.full(d, noise.qdot),
+            ]
+        )  # fmt: skip
+        difference = jnp.concatenate(
+            [
+                lie.so3_log(start.g[:3, :3].T @ end.g[:3, :3]), end.g[:3, 3] - start.g[:3, 3],
+                end.q - start.q, end.xi - start.xi, end.qdot - start.qdot,
+            ]
+        )  # fmt: skip
+        return difference / (c * scale)
+
+    def window(self, theta, s, k_index, measured, times, g_ref):
+        """One window: its weighted measurement residuals and its predicted end state."""
+        scene = self.scene(theta)
+        d = scene.system.shape_dim
+        sub = self.windows.substeps
+        traj = simulate(
+            scene,
+            _state_of(s, g_ref, d),
+            times[-1],
+            t0=times[0],
+            solver=RKMK87(),
+            stepsize_controller=diffrax.StepTo(ts=times),
+            saveat=diffrax.SaveAt(t0=True, steps=True),
+            adjoint=diffrax.ForwardMode(),
+            max_steps=times.shape[0] - 1,
+        )
+        states = jax.vmap(State)(traj.g[::sub], traj.q[::sub], traj.xi[::sub], traj.qdot[::sub])
+        residuals = self._predicted_residuals(scene.system, states, k_index, measured)
+        end = jax.tree.map(lambda x: x[-1], states)
+        return residuals, end
+
+    def split(self, z):
+        """$(\theta, S)$ of a decision vector: the parameters and the `(K, n_s)` window
+        states (empty without fitted states)."""
+        P = self.parameters.size
+        d = self.parameters.scene.system.shape_dim
+        return z[:P], z[P:].reshape(-1, _state_size(d))
+
+    def residuals_and_jacobian(self, z, window_states):
+        r"""The weighted data residuals and continuity defects at $z$, with their Jacobians.
+
+        **Arguments:**
+
+        - `z`: the decision vector ($\theta$, then the window states if they are fitted).
+        - `window_states`: the window states $s_k$, `(K, n_s)`, used where they are not
+          fitted (ignored otherwise).
+
+        **Returns:**
+
+        `(r, J, c, C)`: the data residuals `(R,)` and $\partial r/\partial z$; the
+        continuity defects of windows $1..K-1$, `((K-1) n_s,)`, and $\partial c/\partial z$
+        (empty without fitted states).
+        """
+        theta, fitted = self.split(z)
+        fit = self.windows.fit_states
+        S = fitted if fit else window_states
+        K, P = S.shape[0], theta.shape[0]
+        n_s = S.shape[1]
+        refs = self.references
+        S_next, refs_next = jnp.roll(S, -1, axis=0), jnp.roll(refs, -1, axis=0)
+
+        def one(s, s_next, k_idx, meas, ts, g_ref, g_ref_next):
+            def outputs(x):
+                th, s_ = (x[:P], x[P:]) if fit else (x, s)
+                r, end = self.window(th, s_, k_idx, meas, ts, g_ref)
+                return r, self._continuity(end, s_next, g_ref_next), end
+
+            x0 = jnp.concatenate([theta, s]) if fit else theta
+            basis = jnp.eye(x0.shape[0], dtype=x0.dtype)
+            (r, c, end), (dr, dc, _) = jax.vmap(
+                lambda v: jax.jvp(outputs, (x0,), (v,)), out_axes=((None,) * 3, (1, 1, 0))
+            )(basis)
+            dc_next = jax.jacfwd(lambda sn: self._continuity(end, sn, g_ref_next))(s_next)
+            return r, dr, c, dc, dc_next
+
+        r, dr, c, dc, dc_next = jax.vmap(one)(
+            S, S_next, self.sample_index, self.measured, self.step_times, refs, refs_next
+        )
+        rows = r.shape[1]
+        if not fit:
+            empty = jnp.zeros((0,), r.dtype)
+            return r.reshape(-1), dr.reshape(K * rows, P), empty, jnp.zeros((0, P), r.dtype)
+        eye = jnp.eye(K, dtype=r.dtype)
+        J_states = jnp.einsum("krs,kl->krls", dr[:, :, P:], eye).reshape(K * rows, K * n_s)
+        J = jnp.concatenate([dr[:, :, :P].reshape(K * rows, P), J_states], axis=1)
+        own = jnp.einsum("kcs,kl->kcls", dc[:, :, P:], eye)
+        following = jnp.einsum("kcs,kl->kcls", dc_next, jnp.eye(K, k=1, dtype=r.dtype))
+        C_states = (own + following)[:-1].reshape((K - 1) * n_s, K * n_s)
+        C = jnp.concatenate([dc[:-1, :, :P].reshape((K - 1) * n_s, P), C_states], axis=1)
+        return r.reshape(-1), J, c[:-1].reshape(-1), C
