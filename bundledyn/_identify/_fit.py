@@ -183,8 +183,8 @@ def fit(
     references, window_states = _window_starts(windows, parameters, measurements, guess)
     problem = ShootingProblem(parameters, extra, measurements, windows, references)
     z0 = jnp.concatenate([theta0, window_states.reshape(-1)]) if windows.fit_states else theta0
-    evaluate = _evaluator(problem, gauge, window_states)
-    z0 = _first_order(lambda z: evaluate(problem, z), z0, optimizer, optimizer_steps)
+    evaluate = lambda z: _evaluate(problem, gauge, window_states, z)  # noqa: E731
+    z0 = _first_order(evaluate, z0, optimizer, optimizer_steps)
     iterates = [z0[: parameters.size]]
 
     def record(step, z, cost, damping):
@@ -192,9 +192,7 @@ def fit(
         if progress:
             print(f"  step {step}: cost {cost:.6e}, damping {damping:.1e}", flush=True)
 
-    solution = levenberg_marquardt(
-        lambda z: evaluate(problem, z), z0, max_steps=max_steps, callback=record
-    )
+    solution = levenberg_marquardt(evaluate, z0, max_steps=max_steps, callback=record)
     theta, fitted_states = problem.split(solution.z)
     information = theta_information(
         solution.jacobian, solution.constraint_jacobian, parameters.size
@@ -222,23 +220,18 @@ def fit(
     )
 
 
-def _evaluator(problem: ShootingProblem, gauge: AbstractGauge, window_states):
-    """The compiled `(r, J, c, C)` of the problem with the gauge's pseudo-measurements."""
+@eqx.filter_jit
+def _evaluate(problem: ShootingProblem, gauge: AbstractGauge, window_states, z):
+    """`(r, J, c, C)` of the problem with the gauge's pseudo-measurements appended to `r`."""
+    r, J, c, C = problem.residuals_and_jacobian(z, window_states)
+    P = problem.parameters.size
 
-    @eqx.filter_jit
-    def evaluate(problem, z):
-        r, J, c, C = problem.residuals_and_jacobian(z, window_states)
-        P = problem.parameters.size
+    def extra(theta):
+        return gauge.residuals(problem.parameters, theta)
 
-        def extra(theta):
-            return gauge.residuals(problem.parameters, theta)
-
-        g = extra(z[:P])
-        G = jax.jacfwd(extra)(z[:P])
-        G = jnp.concatenate([G, jnp.zeros((G.shape[0], z.shape[0] - P), G.dtype)], axis=1)
-        return jnp.concatenate([r, g]), jnp.concatenate([J, G]), c, C
-
-    return evaluate
+    G = jax.jacfwd(extra)(z[:P])
+    G = jnp.concatenate([G, jnp.zeros((G.shape[0], z.shape[0] - P), G.dtype)], axis=1)
+    return jnp.concatenate([r, extra(z[:P])]), jnp.concatenate([J, G]), c, C
 
 
 def _first_order(evaluate, z0, optimizer, steps: int):

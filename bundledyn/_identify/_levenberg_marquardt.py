@@ -65,7 +65,7 @@ def _step(r, J, c, C, damping):
     y = jnp.linalg.lstsq(stacked, jnp.concatenate([-b, jnp.zeros_like(scale)]))[0]
     model = b + A @ y
     predicted = 0.5 * (r @ r + c @ c - model @ model)
-    return delta_p + N @ y, predicted, jnp.linalg.norm(scale * y)
+    return delta_p + N @ y, predicted
 
 
 def levenberg_marquardt(
@@ -74,7 +74,7 @@ def levenberg_marquardt(
     *,
     max_steps: int = 100,
     xtol: float = 1e-10,
-    ftol: float = 1e-14,
+    ftol: float = 1e-10,
     callback: Callable | None = None,
 ) -> LevenbergMarquardtResult:
     """Minimize ½‖r(z)‖² subject to c(z) = 0 with the caller's exact Jacobians.
@@ -99,7 +99,7 @@ def levenberg_marquardt(
     costs, evaluations, steps = [cost], 1, 0
     damping, growth, converged = 1e-3, 2.0, False
     while evaluations <= max_steps:
-        delta, predicted, scaled_step = _step(r, J, c, C, damping)
+        delta, predicted = _step(r, J, c, C, damping)
         if not np.isfinite(float(predicted)):
             break
         r_new, J_new, c_new, C_new = evaluate(z + delta)

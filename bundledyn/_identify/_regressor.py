@@ -15,8 +15,9 @@ $(\pi, \bar\mu, \bar E)$ with the unknown constants $\bar\mu, \bar E$: a convex 
 problem (the momentum regressor of a free-floating system), solved with the gauge's
 pseudo-measurements and the integrals by the trapezoidal rule. Its solution is projected
 onto physical bodies (each $P_b$'s eigenvalues floored at a small fraction of its largest)
-and returned as log-Cholesky coordinates. Directions the balances do not determine keep
-their nominal values (the minimum-norm correction).
+and returned as log-Cholesky coordinates. Directions the balances determine weakly or not
+at all stay near their nominal values (a ridge on the change of $\pi$): it is a start,
+which the output-error fit refines.
 """
 
 import equinox as eqx
@@ -36,6 +37,12 @@ __all__ = ["warm_start"]
 
 _ENTRIES = ((0, 0), (1, 1), (2, 2), (0, 1), (0, 2), (1, 2), (0, 3), (1, 3), (2, 3), (3, 3))
 _FLOOR = 1e-6  # smallest eigenvalue of a projected pseudo-inertia, relative to its largest
+# The ridge's weight against the balances' columns (each scaled to norm 1): faint when known
+# inputs do work (their work makes the balances inhomogeneous and fixes every scale they
+# excite), strong without (the balances are then homogeneous in π, and least squares on
+# noisy data drives them toward their trivial solution: the rotational inertia of a
+# torque-free body, whose scale no balance fixes, shrinks toward zero as the noise grows).
+_RIDGE = {True: 1e-6, False: 1e-1}
 
 
 def _entries(P):
@@ -175,5 +182,10 @@ def _solve(linear: _Linear, gauge: AbstractGauge, pi0, measurements: Measurement
 
     e0 = weighted(unknowns0)
     E = jax.jacfwd(weighted)(unknowns0)
-    step = jnp.linalg.lstsq(E, -e0)[0]
+    # Columns scaled to their norms, and a ridge on the change of π (see `_RIDGE`).
+    scale = jnp.linalg.norm(E, axis=0) + jnp.finfo(E.dtype).tiny
+    weight = _RIDGE[bool(linear.extra_effects)]
+    ridge = weight * jnp.concatenate([jnp.ones(pi0.shape[0]), jnp.zeros(7)])
+    A = jnp.concatenate([E / scale, jnp.diag(ridge)])
+    step = jnp.linalg.lstsq(A, jnp.concatenate([-e0, jnp.zeros_like(ridge)]))[0] / scale
     return (unknowns0 + step)[:-7]
