@@ -8,6 +8,8 @@ from ._dynamics import (
     bundle_geometry,
     coadjoint_term,
     curvature_term,
+    driven_shape_acceleration,
+    driven_shape_force,
     frame_transport_term,
     inertia_covariant_derivative,
     kinetic_covariant_derivative,
@@ -45,7 +47,7 @@ from ._geometry import (
 from ._holonomy import curvature_by_holonomy, horizontal_lift, square_loop_holonomy
 from ._paths import models, scenes
 from ._precision import enable_x64
-from ._scene import Free, Prescribed, Scene
+from ._scene import FloatingBase, Free, Prescribed, PrescribedBase, Scene
 from ._scene_file import SceneFile, SceneFileError, load_system
 from ._simulate import project_to_se3, simulate
 from ._solids import AbstractSolid, Box, Capsule, Ellipsoid
@@ -108,11 +110,14 @@ __all__ = [
     "curvature_by_holonomy",
     "curvature_from_connection",
     "curvature_term",
+    "driven_shape_acceleration",
+    "driven_shape_force",
     "DenseMetricJet",
     "Ellipsoid",
     "enable_x64",
     "ExternalWrench",
     "Fixed",
+    "FloatingBase",
     "frame_transport_term",
     "Free",
     "FreeFalling",
@@ -140,6 +145,7 @@ __all__ = [
     "MovingFrame",
     "Multibody",
     "Prescribed",
+    "PrescribedBase",
     "Prismatic",
     "project_to_se3",
     "reference_accelerations",

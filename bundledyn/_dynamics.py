@@ -231,3 +231,54 @@ def reference_accelerations(system: AbstractSystem, q, xi, qdot, wrench, shape_f
     rhs = jnp.concatenate([lie.ad(xi).T @ p + wrench, dT_dq + shape_force]) - Gdot_v
     acc = jnp.linalg.solve(G, rhs)
     return acc[:6], acc[6:]
+
+
+def _shape_rows(system: AbstractSystem, q, xi, qdot):
+    r"""$M$, $B^T$ and $\tfrac12 v^T\partial_q G\,v - (\partial_{\dot q}G\,v)_q$ at $v = [\xi; \dot q]$:
+    the parts of the reference form's shape rows that do not involve the accelerations."""
+    jet = system.metric_jet(q)
+    G = jet.metric
+    v = jnp.concatenate([xi, qdot])[None]
+    dG_v = jet.along_applied(qdot, v)[0]
+    return G[6:, 6:], G[6:, :6], 0.5 * jet.forms(v)[0, 0] - dG_v[6:]
+
+
+def driven_shape_acceleration(system: AbstractSystem, q, xi, xi_dot, qdot, shape_force):
+    r"""$\ddot q$ when the section frame's motion is given: a fixed or moving base.
+
+    The shape rows of the reference form (DESIGN §3; seed 004's shape equation with the
+    base's motion known, the dual of the prescribed shape of (2.7)):
+    $\tfrac{d}{dt}(B^T\xi + M\dot q) - \partial T/\partial q = Q_H$, i.e.
+    $M\ddot q = Q_H + \tfrac12 v^T\partial_q G\,v - (\partial_{\dot q}G\,v)_q - B^T\dot\xi$,
+    $v = [\xi;\dot q]$, from the metric jet's contractions.
+
+    **Arguments:**
+
+    - `system`: any system; `q`, `qdot`: the shape and its velocity, `(d,)`.
+    - `xi`, `xi_dot`: the section frame's given body velocity and its rate, `(6,)`.
+    - `shape_force`: $Q_H$ of the scene's effects, `(d,)`.
+
+    **Returns:**
+
+    $\ddot q$, `(d,)`.
+    """
+    M, Bt, bias = _shape_rows(system, q, xi, qdot)
+    return spd_solve(M, shape_force + bias - matmul(Bt, xi_dot))
+
+
+def driven_shape_force(system: AbstractSystem, q, xi, xi_dot, qdot, qddot):
+    r"""The shape force $Q_H$ that gives the motion $(q, \dot q, \ddot q)$ when the section
+    frame moves with $(\xi, \dot\xi)$: the inverse of `driven_shape_acceleration`, e.g. the
+    joint torques of an arm on a fixed or moving base.
+
+    **Arguments:**
+
+    - `system`, `q`, `xi`, `xi_dot`, `qdot`: as in `driven_shape_acceleration`.
+    - `qddot`: the shape acceleration, `(d,)`.
+
+    **Returns:**
+
+    $Q_H = M\ddot q + B^T\dot\xi - \tfrac12 v^T\partial_q G\,v + (\partial_{\dot q}G\,v)_q$, `(d,)`.
+    """
+    M, Bt, bias = _shape_rows(system, q, xi, qdot)
+    return matmul(M, qddot) + matmul(Bt, xi_dot) - bias

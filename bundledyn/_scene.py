@@ -1,4 +1,4 @@
-"""Scenes: a system, the effects acting on it, its shape mode and its frame of reference."""
+"""Scenes: a system, the effects acting on it, its shape and base modes and its frame of reference."""
 
 from collections.abc import Callable
 
@@ -6,6 +6,7 @@ import equinox as eqx
 import jax
 import jax.numpy as jnp
 
+from . import lie
 from ._effects import AbstractEffect, Kinematics
 from ._frames import AbstractFrame
 from ._systems._base import AbstractSystem
@@ -33,6 +34,47 @@ class Prescribed(eqx.Module):
         return jax.jvp(self.q_of_t, (t,), (jnp.ones_like(t),))
 
 
+class FloatingBase(eqx.Module):
+    """The section frame moves freely: (2.7) is integrated (the default)."""
+
+
+class PrescribedBase(eqx.Module):
+    r"""The section frame follows a given motion $g(t)$: a fixed base, or one moving like a
+    ship's deck; only the shape equation is integrated, driven by the base's motion (the
+    dual of `Prescribed`). The base's motion is given in the Galilean frame.
+
+    **Arguments:**
+
+    - `g_of_t`: a JAX function `t -> g (4, 4)`, a pose in SE(3) for every $t$; its body
+      velocity $\xi = (g^{-1}\dot g)^\vee$ and $\dot\xi$ come by autodiff.
+    """
+
+    g_of_t: Callable
+
+    @classmethod
+    def fixed(cls, g=None) -> "PrescribedBase":
+        """A base held still at the pose `g` (default the identity)."""
+        pose = jnp.eye(4) if g is None else jnp.asarray(g, dtype=float)
+        return cls(_Constant(pose))
+
+    def at(self, t):
+        r"""$(g, \xi, \dot\xi)$ at time `t`."""
+
+        def velocity(t):
+            g, g_dot = jax.jvp(self.g_of_t, (t,), (jnp.ones_like(t),))
+            return lie.vee(lie.se3_inv(g) @ g_dot)
+
+        xi, xi_dot = jax.jvp(velocity, (t,), (jnp.ones_like(t),))
+        return self.g_of_t(t), xi, xi_dot
+
+
+class _Constant(eqx.Module):
+    value: jax.Array
+
+    def __call__(self, t):
+        return self.value + 0.0 * t
+
+
 class Scene(eqx.Module):
     """A system, the effects acting on it, its shape mode and the frame it is seen from.
 
@@ -45,6 +87,7 @@ class Scene(eqx.Module):
     - `system`: any `AbstractSystem`.
     - `effects`: a tuple of effects (`Gravity`, `ShapeSpring`, `ExternalWrench`, ...).
     - `shape`: `Free()` (default) or `Prescribed(q_of_t)`.
+    - `base`: `FloatingBase()` (default) or `PrescribedBase(g_of_t)`.
     - `frame`: `None` for the Galilean frame (default) or an `AbstractFrame`
       (`Boosted`, `FreeFalling`, `MovingFrame`); the state is then relative to that frame.
     """
@@ -53,14 +96,16 @@ class Scene(eqx.Module):
     effects: list[AbstractEffect]
     shape: Free | Prescribed
     frame: AbstractFrame | None
+    base: FloatingBase | PrescribedBase
 
-    def __init__(self, system, effects=(), shape=None, frame=None):
+    def __init__(self, system, effects=(), shape=None, frame=None, *, base=None):
         self.system = system
         # A list, not a tuple: `equinox.tree_at` (used by diffrax's BacksolveAdjoint on the
         # solver state, which holds the scene's cotangent) fails on an empty tuple.
         self.effects = list(effects)
         self.shape = Free() if shape is None else shape
         self.frame = frame
+        self.base = FloatingBase() if base is None else base
 
     def __check_init__(self):
         if not isinstance(self.system, AbstractSystem):
@@ -78,6 +123,18 @@ class Scene(eqx.Module):
             raise ValueError("`Scene.frame` must be None (Galilean) or an AbstractFrame.")
         if isinstance(self.shape, Prescribed) and self.system.shape_dim == 0:
             raise ValueError("`Prescribed` needs a system with shape coordinates (d > 0).")
+        if not isinstance(self.base, FloatingBase | PrescribedBase):
+            raise ValueError("`Scene.base` must be `FloatingBase()` or `PrescribedBase(g_of_t)`.")
+        if isinstance(self.base, PrescribedBase):
+            if not isinstance(self.shape, Free) or self.system.shape_dim == 0:
+                raise ValueError(
+                    "`PrescribedBase` integrates the shape equation: it needs a free shape with "
+                    "d > 0 (with a prescribed shape too, nothing would be left to integrate)."
+                )
+            if self.frame is not None:
+                raise ValueError(
+                    "give a `PrescribedBase`'s motion in the Galilean frame (frame=None)."
+                )
 
     @property
     def free_shape(self) -> bool:

@@ -3,7 +3,8 @@ r"""The term layer: a scene's equations as a diffrax term, and the one codec of 
 The user's state of a system is $(g, q, \xi, \dot q)$ (`State`). The integration variables
 are $y = (g, x)$ with the locked velocity $U = \xi + A(q)\dot q$ in place of $\xi$
 (seed 004, §2): $x = [q, U, \dot q]$ when the shape moves freely, $x = U$ for a rigid body
-or a prescribed shape (whose $q(t), \dot q(t)$ are given). `SceneTerm` owns that layout:
+or a prescribed shape (whose $q(t), \dot q(t)$ are given), and $x = [q, \dot q]$ for a
+prescribed base (whose $g(t), \xi(t)$ are given; $g$ is carried along). `SceneTerm` owns that layout:
 `encode` and `decode` convert a `State` both ways, `unpack` and `pack` give and take the
 parts, and every other module goes through them.
 
@@ -20,11 +21,16 @@ import jax.numpy as jnp
 import jax.tree_util as jtu
 
 from . import lie
-from ._dynamics import bundle_geometry, locked_acceleration, shape_acceleration
+from ._dynamics import (
+    bundle_geometry,
+    driven_shape_acceleration,
+    locked_acceleration,
+    shape_acceleration,
+)
 from ._effects import Kinematics
 from ._geometry import connection, locked_velocity
 from ._linalg import dot, matmul
-from ._scene import Prescribed, Scene
+from ._scene import Prescribed, PrescribedBase, Scene
 from ._state import State
 
 __all__ = [
@@ -117,11 +123,25 @@ def _body_field(scene: Scene, t, g, q, U, qdot):
     return xi, Udot, qddot
 
 
+def _driven_field(scene: Scene, base: PrescribedBase, t, x):
+    r"""The body twist $\xi(t)$ of the given base and $(\dot q, \ddot q)$ of the shape
+    equation it drives (`driven_shape_acceleration`)."""
+    d = scene.system.shape_dim
+    q, qdot = x[:d], x[d:]
+    g, xi, xi_dot = base.at(t)
+    _, Q = scene.forces(Kinematics(t, g, q, xi, qdot))
+    qddot = driven_shape_acceleration(scene.system, q, xi, xi_dot, qdot, Q)
+    return xi, jnp.concatenate([qdot, qddot])
+
+
 @eqx.filter_jit
 def _scene_body_vf(term, t, y, args):
     # A jitted call: diffrax traces a solver's step up to three times (shapes, loop body,
     # starting step), and JAX then reuses the field's jaxpr, and under `jax.grad` its
     # derivative, instead of tracing and differentiating the field each time.
+    base = term.scene.base
+    if isinstance(base, PrescribedBase):
+        return _driven_field(term.scene, base, t, y[1])
     g, q, U, qdot = term.unpack(t, y)
     xi, Udot, qddot = _body_field(term.scene, t, g, q, U, qdot)
     if qddot is None:
@@ -175,15 +195,23 @@ class SceneTerm(AbstractBodyTerm):
         velocity `(d,)`.
         """
         g, x = y
-        shape = self.scene.shape
-        if isinstance(shape, Prescribed):
-            q, qdot = shape.at(t)
+        scene = self.scene
+        if isinstance(scene.shape, Prescribed):
+            q, qdot = scene.shape.at(t)
             return g, q, x, qdot
-        d = self.scene.system.shape_dim
+        d = scene.system.shape_dim
+        if isinstance(scene.base, PrescribedBase):
+            g, xi, _ = scene.base.at(t)
+            q, qdot = x[:d], x[d:]
+            return g, q, locked_velocity(scene.system, q, xi, qdot), qdot
         return g, x[:d], x[d : d + 6], x[d + 6 :]
 
     def pack(self, g, q, U, qdot):
-        r"""The integration state $y = (g, x)$ of the pose, shape, locked velocity and shape velocity."""
+        r"""The integration state $y = (g, x)$ of the pose, shape, locked velocity and shape
+        velocity: $x = [q, U, \dot q]$, $x = U$ for a rigid body or a prescribed shape, and
+        $x = [q, \dot q]$ for a prescribed base."""
+        if isinstance(self.scene.base, PrescribedBase):
+            return g, jnp.concatenate([q, qdot])
         if self.scene.free_shape:
             return g, jnp.concatenate([q, U, qdot])
         return g, U
@@ -191,7 +219,8 @@ class SceneTerm(AbstractBodyTerm):
     def encode(self, t, state: State):
         r"""The integration state $y$ of `state` at time `t`, with $U = \xi + A(q)\dot q$.
 
-        For a prescribed shape, $q$ and $\dot q$ come from its motion at `t`, not from `state`.
+        For a prescribed shape, $q$ and $\dot q$ come from its motion at `t`, not from `state`;
+        for a prescribed base, $g$ and $\xi$ come from the base's motion.
         The state is checked at run time (`State.checked`): a NaN or a pose off SE(3) raises,
         under `jax.jit` too.
 
@@ -215,6 +244,9 @@ class SceneTerm(AbstractBodyTerm):
             )
         else:
             q, qdot = state.q, state.qdot
+        if isinstance(self.scene.base, PrescribedBase):
+            g = self.scene.base.at(jnp.asarray(t, dtype=state.g.dtype))[0]
+            return self.pack(g, q, None, qdot)
         U = locked_velocity(system, q, state.xi, qdot) if system.shape_dim else state.xi
         return self.pack(state.g, q, U, qdot)
 

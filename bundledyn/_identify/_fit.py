@@ -16,7 +16,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .._scene import Scene
+from .._scene import PrescribedBase, Scene
 from .._simulate import simulate
 from .._state import State
 from ._data import Inputs, Measurements
@@ -25,7 +25,7 @@ from ._identifiability import Identifiability, analyse, theta_information
 from ._levenberg_marquardt import levenberg_marquardt
 from ._parameters import Parameters
 from ._regressor import warm_start as regressor_warm_start
-from ._shooting import ShootingProblem, Windows, window_starts
+from ._shooting import ShootingProblem, Windows, window_chart, window_starts
 
 __all__ = ["FitResult", "fit"]
 
@@ -98,27 +98,36 @@ def _window_starts(windows: Windows, parameters: Parameters, measurements: Measu
     d = parameters.scene.system.shape_dim
     take = lambda measured, guessed: (guessed if measured is None else measured)[starts]
     g = take(measurements.pose, guess.g)
-    states = jnp.concatenate(
-        [
-            jnp.zeros((starts.size, 6), g.dtype),
-            jnp.reshape(take(measurements.q, guess.q), (starts.size, d)),
-            take(measurements.xi, guess.xi),
-            jnp.reshape(take(measurements.qdot, guess.qdot), (starts.size, d)),
-        ],
-        axis=1,
+    states = window_chart(parameters.scene).coordinates(
+        jnp.reshape(take(measurements.q, guess.q), (starts.size, d)),
+        take(measurements.xi, guess.xi),
+        jnp.reshape(take(measurements.qdot, guess.qdot), (starts.size, d)),
     )
     return g, states
 
 
+def _measured_states(scene: Scene, measurements: Measurements) -> State | None:
+    """The states at the samples, if measured: the whole state of a floating base; $q$ and
+    $\dot q$ on a prescribed base, whose motion gives the rest."""
+    if isinstance(scene.base, PrescribedBase):
+        if measurements.q is None or measurements.qdot is None:
+            return None
+        g, xi, _ = jax.vmap(scene.base.at)(measurements.ts)
+        return jax.vmap(State)(g, measurements.q, xi, measurements.qdot)
+    return measurements.states
+
+
 def _nominal_trajectory(scene: Scene, measurements: Measurements, initial_state: State | None):
-    states = measurements.states
+    """The states at the samples: measured, or simulated with the nominal scene."""
+    states = _measured_states(scene, measurements)
     if states is not None:
         return states
     if initial_state is None:
         raise ValueError(
-            "the measurements do not hold the whole state (pose, q, xi, qdot): give "
-            "`initial_state`, an estimate of the state at the first sample, from which the "
-            "nominal model is simulated to start the unmeasured parts of the windows."
+            "the measurements do not hold the whole state (pose, q, xi, qdot; q and qdot on "
+            "a prescribed base): give `initial_state`, an estimate of the state at the first "
+            "sample, from which the nominal model is simulated to start the unmeasured "
+            "parts of the windows."
         )
     ts = measurements.ts
     traj = simulate(scene, initial_state, ts[-1], t0=ts[0], saveat=diffrax.SaveAt(ts=ts))
@@ -151,7 +160,8 @@ def fit(
     - `windows`: the shooting `Windows` (default: one window per 50 sample intervals,
       fitted window states).
     - `warm_start`: start from the equation-error solution (`warm_start`) when the
-      measurements hold the whole state; otherwise from the nominal parameters.
+      measurements hold the whole state ($q$ and $\dot q$ on a prescribed base); otherwise
+      from the nominal parameters.
     - `initial_state`: the state at the first sample, needed when a channel of the state
       is not measured (the windows' unmeasured parts start from the nominal motion).
     - `optimizer`, `optimizer_steps`: an optax optimizer and how many first-order steps it
@@ -170,8 +180,9 @@ def fit(
     extra = [] if inputs is None else inputs.effects()
     theta0 = parameters.initial()
     start = None
-    if warm_start and measurements.states is not None:
-        start = regressor_warm_start(parameters, measurements, inputs, gauge)
+    states = _measured_states(parameters.scene, measurements)
+    if warm_start and states is not None:
+        start = regressor_warm_start(parameters, measurements, inputs, gauge, states)
         theta0 = start
     guess = _nominal_trajectory(
         eqx.tree_at(

@@ -12,7 +12,10 @@ $$\mu_k - \int_{t_0}^{t_k} \operatorname{Ad}^*_g F_b\,dt = \bar\mu,\qquad
 (seed 004, (2.6)–(2.7) with the scene's forces: the wrench of every effect moves the
 momentum, the work of the non-conservative ones the energy) are linear in
 $(\pi, \bar\mu, \bar E)$ with the unknown constants $\bar\mu, \bar E$: a convex least-squares
-problem (the momentum regressor of a free-floating system), solved with the gauge's
+problem (the momentum regressor of a free-floating system). On a prescribed base the
+shape equation itself is linear in $\pi$ (the torque regressor of a robot arm):
+$Q_H$ required by the measured motion (`driven_shape_force`, $\ddot q$ by differences of the
+measured $\dot q$) equals the effects' $Q_H$, inputs included. Either is solved with the gauge's
 pseudo-measurements and the integrals by the trapezoidal rule. Its solution is projected
 onto physical bodies (each $P_b$'s eigenvalues floored at a small fraction of its largest)
 and returned as log-Cholesky coordinates. Directions the balances determine weakly or not
@@ -26,8 +29,11 @@ import jax.numpy as jnp
 import numpy as np
 
 from .. import lie
+from .._dynamics import driven_shape_force
 from .._effects import Kinematics
 from .._geometry import kinetic_energy
+from .._scene import PrescribedBase
+from .._state import State
 from .._systems._pseudo_inertia import log_cholesky_from_pseudo_inertia
 from ._data import Inputs, Measurements
 from ._gauge import AbstractGauge
@@ -97,6 +103,12 @@ class _Linear(eqx.Module):
             offset += size
         return eqx.tree_at(lambda s: s.effects, scene, [*scene.effects, *self.extra_effects])
 
+    def driven_balance(self, pi, t, g, q, xi, xi_dot, qdot, qddot):
+        """The shape force the motion requires minus the effects' (inputs included)."""
+        scene = self.scene(pi)
+        required = driven_shape_force(scene.system, q, xi, xi_dot, qdot, qddot)
+        return required - scene.forces(Kinematics(t, g, q, xi, qdot))[1]
+
     def balances(self, pi, t, g, q, xi, qdot):
         """Momentum (Galilean frame), energy, momentum rate and non-conservative power at one sample."""
         scene = self.scene(pi)
@@ -118,14 +130,19 @@ class _Linear(eqx.Module):
 
 
 def warm_start(
-    parameters: Parameters, measurements: Measurements, inputs: Inputs | None, gauge: AbstractGauge
+    parameters: Parameters,
+    measurements: Measurements,
+    inputs: Inputs | None,
+    gauge: AbstractGauge,
+    states: State,
 ):
     r"""The equation-error estimate of $\theta$ (see the module docstring).
 
     **Arguments:**
 
-    - `parameters`, `measurements` (with the whole state measured), `inputs`, `gauge`: as
-      in `fit`.
+    - `parameters`, `measurements`, `inputs`, `gauge`: as in `fit`.
+    - `states`: the measured states at the samples (for a prescribed base, its motion and
+      the measured $q$, $\dot q$).
 
     **Returns:**
 
@@ -139,7 +156,7 @@ def warm_start(
             *[jnp.ravel(v) for v in parameters.joint_constant_values(theta0).values()],
         ]
     )
-    solution = _solve(linear, gauge, pi0, measurements)
+    solution = _solve(linear, gauge, pi0, states, measurements.ts)
     k = len(parameters.bodies)
     P = _project(_matrix(solution[: 10 * k].reshape(k, 10)), parameters.scene.system.fixed_centres)
     theta = log_cholesky_from_pseudo_inertia(P)[
@@ -149,43 +166,75 @@ def warm_start(
     return jnp.concatenate([theta.reshape(-1), constants])
 
 
-@eqx.filter_jit
-def _solve(linear: _Linear, gauge: AbstractGauge, pi0, measurements: Measurements):
-    states = measurements.states
-    assert states is not None
-    ts = measurements.ts
+def _floating_equations(linear: _Linear, gauge: AbstractGauge, pi0, states, ts):
+    """The momentum and energy balances of a floating system, with the unknowns
+    $(\pi, \bar\mu, \bar E)$: the weighted residual function and its starting point."""
 
-    def residuals(unknowns):
-        pi, mu_bar, energy_bar = unknowns[:-7], unknowns[-7:-1], unknowns[-1]
-        momentum, energy, rate, power = jax.vmap(linear.balances, (None, 0, 0, 0, 0, 0))(
+    def balances(pi):
+        return jax.vmap(linear.balances, (None, 0, 0, 0, 0, 0))(
             pi, ts, states.g, states.q, states.xi, states.qdot
         )
-        momentum_error = momentum - _cumulative_trapezoid(ts, rate) - mu_bar
-        energy_error = energy - _cumulative_trapezoid(ts, power[:, None])[:, 0] - energy_bar
-        return momentum_error, energy_error
 
-    momentum0, energy0 = jax.vmap(linear.balances, (None, 0, 0, 0, 0, 0))(
-        pi0, ts, states.g, states.q, states.xi, states.qdot
-    )[:2]
+    momentum0, energy0, _, _ = balances(pi0)
     unknowns0 = jnp.concatenate([pi0, jnp.mean(momentum0, axis=0), jnp.mean(energy0)[None]])
     momentum_scale = jnp.sqrt(jnp.mean(momentum0**2)) + jnp.finfo(pi0.dtype).tiny
     energy_scale = jnp.sqrt(jnp.mean(energy0**2)) + jnp.finfo(pi0.dtype).tiny
 
     def weighted(unknowns):
-        momentum_error, energy_error = residuals(unknowns)
-        k = len(linear.parameters.bodies)
-        masses = unknowns[: 10 * k].reshape(k, 10)[:, 9]  # P_44, linear in π
-        gauge_rows = gauge.mass_rows(linear.parameters, masses)
+        pi, mu_bar, energy_bar = unknowns[:-7], unknowns[-7:-1], unknowns[-1]
+        momentum, energy, rate, power = balances(pi)
+        momentum_error = momentum - _cumulative_trapezoid(ts, rate) - mu_bar
+        energy_error = energy - _cumulative_trapezoid(ts, power[:, None])[:, 0] - energy_bar
         return jnp.concatenate(
-            [momentum_error.reshape(-1) / momentum_scale, energy_error / energy_scale, gauge_rows]
+            [
+                momentum_error.reshape(-1) / momentum_scale,
+                energy_error / energy_scale,
+                _gauge_rows(linear.parameters, gauge, pi),
+            ]
         )
 
+    return weighted, unknowns0
+
+
+def _driven_equations(linear: _Linear, gauge: AbstractGauge, pi0, states, ts):
+    r"""The shape equation of a prescribed base, $Q_H$ required by the measured motion minus
+    the effects' (inputs included), linear in $\pi$; $\ddot q$ by central differences of the
+    measured $\dot q$."""
+    base = linear.parameters.scene.base
+    _, _, xi_dot = jax.vmap(base.at)(ts)
+    qddot = jnp.gradient(states.qdot, ts, axis=0)
+
+    def balance(pi):
+        return jax.vmap(linear.driven_balance, (None, 0, 0, 0, 0, 0, 0, 0))(
+            pi, ts, states.g, states.q, states.xi, xi_dot, states.qdot, qddot
+        )
+
+    scale = jnp.sqrt(jnp.mean(balance(pi0) ** 2)) + jnp.finfo(pi0.dtype).tiny
+
+    def weighted(pi):
+        rows = balance(pi).reshape(-1) / scale
+        return jnp.concatenate([rows, _gauge_rows(linear.parameters, gauge, pi)])
+
+    return weighted, pi0
+
+
+def _gauge_rows(parameters: Parameters, gauge: AbstractGauge, pi):
+    k = len(parameters.bodies)
+    return gauge.mass_rows(parameters, pi[: 10 * k].reshape(k, 10)[:, 9])  # P_44, linear in π
+
+
+@eqx.filter_jit
+def _solve(linear: _Linear, gauge: AbstractGauge, pi0, states, ts):
+    """The least-squares π of the balances (`_floating_equations` or `_driven_equations`)."""
+    driven = isinstance(linear.parameters.scene.base, PrescribedBase)
+    equations = _driven_equations if driven else _floating_equations
+    weighted, unknowns0 = equations(linear, gauge, pi0, states, ts)
     e0 = weighted(unknowns0)
     E = jax.jacfwd(weighted)(unknowns0)
     # Columns scaled to their norms, and a ridge on the change of π (see `_RIDGE`).
     scale = jnp.linalg.norm(E, axis=0) + jnp.finfo(E.dtype).tiny
     weight = _RIDGE[bool(linear.extra_effects)]
-    ridge = weight * jnp.concatenate([jnp.ones(pi0.shape[0]), jnp.zeros(7)])
+    ridge = weight * (jnp.arange(unknowns0.shape[0]) < pi0.shape[0])
     A = jnp.concatenate([E / scale, jnp.diag(ridge)])
     step = jnp.linalg.lstsq(A, jnp.concatenate([-e0, jnp.zeros_like(ridge)]))[0] / scale
-    return (unknowns0 + step)[:-7]
+    return (unknowns0 + step)[: pi0.shape[0]]

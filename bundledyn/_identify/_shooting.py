@@ -23,7 +23,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from .. import lie
-from .._scene import Scene
+from .._scene import PrescribedBase, Scene
 from .._simulate import simulate
 from .._solver._rkmk import RKMK87
 from .._state import State
@@ -58,13 +58,65 @@ class Windows(eqx.Module):
             raise ValueError("`Windows.count` and `Windows.substeps` must be positive.")
 
 
-def _state_size(d: int) -> int:
-    return 12 + 2 * d
+class _FloatingChart(eqx.Module):
+    r"""Window states of a floating base: $s = (\delta, q, \xi, \dot q)$ about a reference pose."""
+
+    d: int = eqx.field(static=True)
+
+    @property
+    def size(self) -> int:
+        return 12 + 2 * self.d
+
+    def state(self, s, g_ref) -> State:
+        d = self.d
+        return State(g_ref @ lie.se3_exp(s[:6]), s[6 : 6 + d], s[6 + d : 12 + d], s[12 + d :])
+
+    def coordinates(self, q, xi, qdot):
+        """$s$ of a state at its own reference pose ($\delta = 0$), batched over windows."""
+        return jnp.concatenate([jnp.zeros_like(xi), q, xi, qdot], axis=-1)
+
+    def difference(self, end: State, start: State, noise: Noise):
+        """`end - start` in the chart, each part divided by its channel's noise level."""
+        d = self.d
+        scale = jnp.concatenate(
+            [
+                jnp.full(3, noise.rotation), jnp.full(3, noise.position), jnp.full(d, noise.q),
+                jnp.full(3, noise.angular_velocity), jnp.full(3, noise.linear_velocity),
+                jnp.full(d, noise.qdot),
+            ]
+        )  # fmt: skip
+        difference = jnp.concatenate(
+            [
+                lie.so3_log(start.g[:3, :3].T @ end.g[:3, :3]), end.g[:3, 3] - start.g[:3, 3],
+                end.q - start.q, end.xi - start.xi, end.qdot - start.qdot,
+            ]
+        )  # fmt: skip
+        return difference / scale
 
 
-def _state_of(s, g_ref, d):
-    r"""The `State` of a window state $s = (\delta, q, \xi, \dot q)$ about `g_ref`."""
-    return State(g_ref @ lie.se3_exp(s[:6]), s[6 : 6 + d], s[6 + d : 12 + d], s[12 + d :])
+class _DrivenChart(eqx.Module):
+    r"""Window states of a prescribed base: $s = (q, \dot q)$ (the base's motion is given)."""
+
+    d: int = eqx.field(static=True)
+
+    @property
+    def size(self) -> int:
+        return 2 * self.d
+
+    def state(self, s, g_ref) -> State:
+        return State(g_ref, s[: self.d], jnp.zeros(6, s.dtype), s[self.d :])
+
+    def coordinates(self, q, xi, qdot):
+        return jnp.concatenate([q, qdot], axis=-1)
+
+    def difference(self, end: State, start: State, noise: Noise):
+        return jnp.concatenate([(end.q - start.q) / noise.q, (end.qdot - start.qdot) / noise.qdot])
+
+
+def window_chart(scene: Scene):
+    """The coordinates of the windows' initial states for this scene's base mode."""
+    d = scene.system.shape_dim
+    return _DrivenChart(d) if isinstance(scene.base, PrescribedBase) else _FloatingChart(d)
 
 
 def _pose_residual(g_pred, g_meas, noise: Noise):
@@ -159,34 +211,23 @@ class ShootingProblem(eqx.Module):
         r = jnp.concatenate(parts, axis=1)
         return jnp.where(measured[:, None], r, 0.0).reshape(-1)
 
+    @property
+    def chart(self):
+        """The window states' chart (`window_chart`)."""
+        return window_chart(self.parameters.scene)
+
     def _continuity(self, end: State, s_next, g_ref_next):
         """Weighted continuity residual: the window's end state minus the next window's start."""
-        d = end.q.shape[0]
-        start = _state_of(s_next, g_ref_next, d)
-        noise, c = self.measurements.noise, self.windows.continuity
-        scale = jnp.concatenate(
-            [
-                jnp.full(3, noise.rotation), jnp.full(3, noise.position), jnp.full(d, noise.q),
-                jnp.full(3, noise.angular_velocity), jnp.full(3, noise.linear_velocity),
-                jnp.full(d, noise.qdot),
-            ]
-        )  # fmt: skip
-        difference = jnp.concatenate(
-            [
-                lie.so3_log(start.g[:3, :3].T @ end.g[:3, :3]), end.g[:3, 3] - start.g[:3, 3],
-                end.q - start.q, end.xi - start.xi, end.qdot - start.qdot,
-            ]
-        )  # fmt: skip
-        return difference / (c * scale)
+        start = self.chart.state(s_next, g_ref_next)
+        return self.chart.difference(end, start, self.measurements.noise) / self.windows.continuity
 
     def window(self, theta, s, k_index, measured, times, g_ref):
         """One window: its weighted measurement residuals and its predicted end state."""
         scene = self.scene(theta)
-        d = scene.system.shape_dim
         sub = self.windows.substeps
         traj = simulate(
             scene,
-            _state_of(s, g_ref, d),
+            self.chart.state(s, g_ref),
             times[-1],
             t0=times[0],
             solver=RKMK87(),
@@ -204,8 +245,7 @@ class ShootingProblem(eqx.Module):
         """$(\theta, S)$ of a decision vector: the parameters and the `(K, n_s)` window
         states (empty without fitted states)."""
         P = self.parameters.size
-        d = self.parameters.scene.system.shape_dim
-        return z[:P], z[P:].reshape(-1, _state_size(d))
+        return z[:P], z[P:].reshape(-1, self.chart.size)
 
     def residuals_and_jacobian(self, z, window_states):
         r"""The weighted data residuals and continuity defects at $z$, with their Jacobians.

@@ -9,7 +9,7 @@ from diffrax import RESULTS
 
 from .. import lie
 from .._effects import Kinematics
-from .._scene import Free
+from .._scene import FloatingBase, Free
 from .._term import SceneTerm
 from ._base import AbstractLieGroupSolver
 from ._interpolation import LieLocalInterpolation
@@ -43,7 +43,8 @@ class VariationalMidpoint(AbstractLieGroupSolver):
     whose Jacobian is $h^{-1}\operatorname{diag}(1, -1)\,G(\bar q)$ (exact to $O(h)$, so
     each iteration gains a factor $O(h)$). Second order.
 
-    Scenes in the Galilean frame with a free shape (or a single rigid body); any effects.
+    Scenes in the Galilean frame with a free shape (or a single rigid body) and a floating
+    base; any effects.
 
     **Arguments:**
 
@@ -63,10 +64,12 @@ class VariationalMidpoint(AbstractLieGroupSolver):
 
     def init(self, terms, t0, t1, y0, args):
         scene = _scene_term(terms).scene
-        if scene.frame is not None or not isinstance(scene.shape, Free):
+        floating = isinstance(scene.base, FloatingBase)
+        if scene.frame is not None or not isinstance(scene.shape, Free) or not floating:
             raise ValueError(
-                "VariationalMidpoint integrates scenes in the Galilean frame with a free shape; "
-                "use RKMK87 (the default) for moving frames or prescribed shapes."
+                "VariationalMidpoint integrates scenes in the Galilean frame with a free shape "
+                "and a floating base; use RKMK87 (the default) for moving frames, prescribed "
+                "shapes or prescribed bases."
             )
         return None
 
