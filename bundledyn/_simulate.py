@@ -146,7 +146,7 @@ def simulate(
     # Parameters may be traced (fitted, or under `jax.grad`): check them once per solve.
     scene = eqx.tree_at(lambda s: s.system, scene, scene.system.checked())
     term = SceneTerm(scene)
-    y0 = term.encode(t0, state0)
+    y0 = term.encode(t0, state0.checked())
     if stepsize_controller is not None:
         controller = stepsize_controller
     elif isinstance(solver, diffrax.AbstractAdaptiveSolver):

@@ -221,8 +221,6 @@ class SceneTerm(AbstractBodyTerm):
 
         For a prescribed shape, $q$ and $\dot q$ come from its motion at `t`, not from `state`;
         for a prescribed base, $g$ and $\xi$ come from the base's motion.
-        The state is checked at run time (`State.checked`): a NaN or a pose off SE(3) raises,
-        under `jax.jit` too.
 
         **Arguments:**
 
@@ -234,7 +232,6 @@ class SceneTerm(AbstractBodyTerm):
         `y = (g, x)`.
         """
         system = self.scene.system
-        state = state.checked()
         if isinstance(self.scene.shape, Prescribed):
             q, qdot = self.scene.shape.at(jnp.asarray(t, dtype=state.g.dtype))
         elif state.q.shape != (system.shape_dim,):

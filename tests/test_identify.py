@@ -114,7 +114,7 @@ def test_noise_free_data_determine_every_identifiable_combination_to_rounding():
 
 def test_every_iterate_is_a_physical_system():
     _, result = noise_free_fit()
-    assert len(result.iterates) == result.stats["steps"] + 1
+    assert len(result.iterates) == result.stats["steps"] + 1 > 2
     for theta in result.iterates:
         m, _, J = identify.inertial_from_pseudo_inertia(result.parameters.pseudo_inertias(theta))
         moments = np.linalg.eigvalsh(J)
@@ -126,5 +126,5 @@ def test_the_reported_estimates_and_report_are_consistent():
     _, result = noise_free_fit()
     text = result.report()
     assert "gauge: measured inputs" in text and "The data do not determine:" in text
-    assert result.costs[-1] < 1e-10 * result.costs[0]
+    assert result.costs[-1] < 1e-12 * max(result.costs)
     assert result.identifiability.noise_scale < 1e-4  # the data were noise-free

@@ -42,12 +42,16 @@ class FitResult:
     - `identifiability`: the `Identifiability` report (singular values, undetermined
       directions in physical terms, standard errors).
     - `gauge`: what fixed the mass scale, in words.
-    - `costs`: the merit ½‖r‖² + ½‖c‖² at each accepted iterate (the first at the start).
+    - `costs`: the merit ½‖r‖² + ½‖c‖² at the start and each accepted iterate, stage by
+      stage (the windows are first joined loosely, then tightly; the merit jumps between
+      the stages).
     - `warm_start`: $\theta$ from the equation-error warm start, or `None`.
     - `window_states`: the fitted (or measured) initial states of the windows, `(K, n_s)`.
     - `iterates`: $\theta$ at the start and after each accepted step.
-    - `stats`: evaluations of the residuals and Jacobian, window solves, accepted steps,
-      whether Levenberg–Marquardt converged, and the seconds taken.
+    - `stats`: `evaluations` of the residuals with their Jacobian, `trials` of trial steps
+      (residuals alone), `window_solves` (each window solved once per evaluation or
+      trial; an evaluation carries the tangents too), accepted `steps`, whether
+      Levenberg–Marquardt `converged`, and the `seconds` taken.
     """
 
     scene: Scene
@@ -72,8 +76,8 @@ class FitResult:
         lines = [
             f"Identification of {len(self.parameters.bodies)} bodies "
             f"({self.parameters.size} parameters); gauge: {self.gauge}.",
-            f"  {self.stats['steps']} Levenberg–Marquardt steps, {self.stats['evaluations']} "
-            f"Jacobians, {self.stats['window_solves']} window solves, "
+            f"  {self.stats['steps']} Levenberg–Marquardt steps ({self.stats['trials']} tried), "
+            f"{self.stats['evaluations']} Jacobians, {self.stats['window_solves']} window solves, "
             f"{self.stats['seconds']:.1f} s; cost {self.costs[0]:.3e} -> {self.costs[-1]:.3e}"
             f"{'' if self.stats['converged'] else ' (not converged)'}.",
             f"  noise scale {ident.noise_scale:.3g} (1 when the stated noise levels are right); "
@@ -166,7 +170,7 @@ def fit(
       is not measured (the windows' unmeasured parts start from the nominal motion).
     - `optimizer`, `optimizer_steps`: an optax optimizer and how many first-order steps it
       takes before Levenberg–Marquardt (with the exact gradient $J^Tr + C^Tc$).
-    - `max_steps`: the most Levenberg–Marquardt evaluations.
+    - `max_steps`: the most Levenberg–Marquardt trial steps.
     - `progress`: print each accepted step.
 
     **Returns:**
@@ -193,8 +197,18 @@ def fit(
     )
     references, window_states = _window_starts(windows, parameters, measurements, guess)
     problem = ShootingProblem(parameters, extra, measurements, windows, references)
-    z0 = jnp.concatenate([theta0, window_states.reshape(-1)]) if windows.fit_states else theta0
-    evaluate = lambda z: _evaluate(problem, gauge, window_states, z)  # noqa: E731
+
+    def evaluate(z, problem=problem):
+        return _evaluate(problem, gauge, window_states, z)
+
+    def decision(theta):
+        return jnp.concatenate([theta, window_states.reshape(-1)]) if windows.fit_states else theta
+
+    z0 = decision(theta0)
+    if start is not None and _merit(evaluate(decision(parameters.initial()))) < _merit(
+        evaluate(z0)
+    ):
+        z0 = decision(parameters.initial())  # the warm start was worse than the nominal values
     z0 = _first_order(evaluate, z0, optimizer, optimizer_steps)
     iterates = [z0[: parameters.size]]
 
@@ -203,7 +217,31 @@ def fit(
         if progress:
             print(f"  step {step}: cost {cost:.6e}, damping {damping:.1e}", flush=True)
 
-    solution = levenberg_marquardt(evaluate, z0, max_steps=max_steps, callback=record)
+    state_units = problem.chart.units(measurements.noise)
+    units = jnp.concatenate(
+        [jnp.asarray(parameters.scales(theta0)), jnp.tile(state_units, window_states.shape[0])]
+    )
+    # Continuation in the continuity: first the windows join loosely (at the data's noise
+    # level, like process noise), which keeps the first steps near-linear however far the
+    # noisy window starts and the nominal parameters put the windows' ends from their
+    # successors' starts; then as tightly as `windows.continuity` asks.
+    loose = eqx.tree_at(lambda p: p.windows.continuity, problem, max(windows.continuity, 1.0))
+    # The loose stage only needs to bring the windows near the data: a coarse tolerance.
+    stages = [(loose, 1e-4), (problem, 1e-8)]
+    if not (windows.fit_states and windows.count > 1):
+        stages = stages[1:]
+    costs, evaluations, trials, steps = [], 0, 0, 0
+    for stage, tolerance in stages:
+        solution = levenberg_marquardt(
+            lambda z, stage=stage: evaluate(z, stage),
+            lambda z, stage=stage: _residuals(stage, gauge, window_states, z),
+            z0, max_steps=max(1, max_steps - trials), ftol=tolerance,
+            units=units[: z0.shape[0]], callback=record,
+        )  # fmt: skip
+        z0 = solution.z
+        costs += solution.costs
+        evaluations += solution.evaluations
+        trials, steps = trials + solution.trials, steps + solution.steps
     theta, fitted_states = problem.split(solution.z)
     information = theta_information(
         solution.jacobian, solution.constraint_jacobian, parameters.size
@@ -217,18 +255,28 @@ def fit(
         parameters=parameters,
         identifiability=analyse(parameters, theta, information, chi2, dof),
         gauge=gauge.describe(parameters),
-        costs=solution.costs,
+        costs=costs,
         warm_start=start,
         window_states=fitted_states if windows.fit_states else window_states,
         iterates=iterates,
         stats=dict(
-            evaluations=solution.evaluations,
-            window_solves=solution.evaluations * windows.count,
-            steps=solution.steps,
+            evaluations=evaluations,
+            trials=trials,
+            window_solves=(evaluations + trials) * windows.count,
+            steps=steps,
             converged=solution.converged,
             seconds=time.perf_counter() - begin,
         ),
     )
+
+
+@eqx.filter_jit
+def _residuals(problem: ShootingProblem, gauge: AbstractGauge, window_states, z):
+    """`(r, c)` of the problem with the gauge's pseudo-measurements appended to `r`."""
+    r, c = problem.residuals(z, window_states)
+    return jnp.concatenate(
+        [r, gauge.residuals(problem.parameters, z[: problem.parameters.size])]
+    ), c
 
 
 @eqx.filter_jit
@@ -243,6 +291,12 @@ def _evaluate(problem: ShootingProblem, gauge: AbstractGauge, window_states, z):
     G = jax.jacfwd(extra)(z[:P])
     G = jnp.concatenate([G, jnp.zeros((G.shape[0], z.shape[0] - P), G.dtype)], axis=1)
     return jnp.concatenate([r, extra(z[:P])]), jnp.concatenate([J, G]), c, C
+
+
+def _merit(evaluation) -> float:
+    r, _, c, _ = evaluation
+    merit = 0.5 * float(r @ r + c @ c)
+    return merit if np.isfinite(merit) else np.inf
 
 
 def _first_order(evaluate, z0, optimizer, steps: int):

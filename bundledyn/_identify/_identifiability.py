@@ -25,7 +25,6 @@ import jax.numpy as jnp
 import numpy as np
 
 from .._systems._pseudo_inertia import inertial_from_pseudo_inertia
-from ._levenberg_marquardt import null_space
 from ._parameters import Parameters
 from ._regrouping import named_directions
 
@@ -67,16 +66,22 @@ class Identifiability(NamedTuple):
     estimates: tuple[Estimate, ...]
 
 
+def null_space(C):
+    r"""An orthonormal basis of the null space of $C$ (from a QR factorization of $C^T$)."""
+    Q, _ = jnp.linalg.qr(C.T, mode="complete")
+    return Q[:, C.shape[0] :]
+
+
 def theta_information(J, C, num_parameters: int):
     r"""$F_\theta$: the information on the first `num_parameters` entries of $z$ once the
     others (window states) are eliminated under the constraints $C\delta z = 0$."""
     n = J.shape[1]
-    N = null_space(C)[2] if C.shape[0] else jnp.eye(n, dtype=J.dtype)
+    N = null_space(C) if C.shape[0] else jnp.eye(n, dtype=J.dtype)
     A, T = J @ N, N[:num_parameters]
     B = A @ jnp.linalg.pinv(T)
     if n == num_parameters:
         return B.T @ B
-    _, _, T_null = null_space(T)
+    T_null = null_space(T)
     Q, R = jnp.linalg.qr(A @ T_null)
     rank = jnp.abs(jnp.diagonal(R)) > 1e-12 * jnp.max(jnp.abs(jnp.diagonal(R)))
     Q = Q * rank
@@ -102,18 +107,6 @@ def _quantity_names(parameters: Parameters):
         size = int(np.size(value))
         labels += [name] if size == 1 else [f"{name}[{k}]" for k in range(size)]
     return labels
-
-
-def _scales(parameters: Parameters, theta):
-    """Each coordinate's natural size: 1 for logarithms, the body's radius of gyration for
-    the log-Cholesky entries that are lengths ($s_{ij}$, $t_i$)."""
-    n = 7 if parameters.scene.system.fixed_centres else 10
-    m, _, J = (
-        np.asarray(x) for x in inertial_from_pseudo_inertia(parameters.pseudo_inertias(theta))
-    )
-    radius = np.sqrt(np.trace(J, axis1=1, axis2=2) / (2 * m))
-    per_body = [np.where(np.arange(n) >= 4, r, 1.0) for r in radius]
-    return np.concatenate([*per_body, np.ones(parameters.size - len(parameters.bodies) * n)])
 
 
 def _describe(direction, parameters: Parameters, theta, names):
@@ -171,7 +164,7 @@ def analyse(parameters: Parameters, theta, information, chi2: float, dof: int) -
 
     An `Identifiability`.
     """
-    S = _scales(parameters, theta)
+    S = parameters.scales(theta)
     F = np.asarray(information) * S[:, None] * S[None, :]
     eigenvalues, vectors = np.linalg.eigh(0.5 * (F + F.T))
     eigenvalues, vectors = eigenvalues[::-1], vectors[:, ::-1]

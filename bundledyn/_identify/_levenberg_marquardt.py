@@ -1,17 +1,19 @@
-r"""Levenberg–Marquardt with equality constraints, on residuals whose exact Jacobian the caller computes.
+r"""Levenberg–Marquardt on data residuals and penalized constraints, with the caller's Jacobians.
 
 optimistix's least-squares solvers build the Jacobian themselves, one JVP of the whole
-residual function per decision variable, and take no constraints; the multiple-shooting
-problem's Jacobian is block sparse (each window's states touch only that window),
-`ShootingProblem` computes it with each window's own tangents only, and its continuity
-conditions $c(z) = 0$ are constraints. Each step here solves the linearized constraints
-exactly, $C\delta = -c$ (Bock's multiple shooting: $\delta = \delta_p + N y$ with $N$ a
-basis of the null space of $C$ from a QR factorization), and takes a Levenberg–Marquardt
-step in $y$ on the data residuals: Marquardt's scaled damping
-$\lambda\,\mathrm{diag}(A^TA)$, $A = JN$, a step from the stacked least-squares problem (never
-the normal equations), the gain ratio of actual to predicted reduction of the merit
-$\tfrac12\|r\|^2 + \tfrac12\|c\|^2$, Nielsen's update of $\lambda$, and stopping on small
-steps or reductions. Without constraints it is plain Levenberg–Marquardt.
+residual function per decision variable; the multiple-shooting problem's Jacobian is block
+sparse (each window's states touch only that window), and `ShootingProblem` computes it
+with each window's own tangents only. Its continuity conditions $c(z) = 0$ enter as
+residuals weighted far above the data (a penalty whose solution coincides with the
+constrained one to within the weight's ratio). Each step is Levenberg's: in the variables'
+natural units $u$ (a parameter's own size, a state's noise level), the stacked residuals'
+Jacobian $A = [J; C]\,\mathrm{diag}(u)$ is factorized $A = W\Sigma V^T$ and
+$\delta = -\mathrm{diag}(u)\sum_i v_i \sigma_i/(\sigma_i^2 + \lambda)\, w_i^Tb$ over the
+directions the residuals resolve ($\sigma_i >$ `1/resolution`): directions the data do not
+determine stay put instead of drifting on rounding-level gradients until a body degenerates
+(the identifiability report names them). The gain ratio of actual to predicted reduction
+of $\tfrac12\|r\|^2 + \tfrac12\|c\|^2$ drives Nielsen's update of $\lambda$; it stops on
+small steps or reductions.
 """
 
 from collections.abc import Callable
@@ -29,8 +31,9 @@ class LevenbergMarquardtResult(NamedTuple):
 
     **Fields:** `z` (the solution); `residuals`, `jacobian`, `defects` and
     `constraint_jacobian` there; `costs` (the merit ½‖r‖² + ½‖c‖² at each accepted
-    iterate, the first at the start); `evaluations` (of $(r, J, c, C)$); `steps`
-    (accepted); `converged` (a stopping test was met before `max_steps`).
+    iterate, the first at the start); `evaluations` (of $(r, J, c, C)$); `trials` (of the
+    residuals at trial points); `steps` (accepted); `converged` (a stopping test was met
+    before `max_steps` trials).
     """
 
     z: jax.Array
@@ -40,41 +43,34 @@ class LevenbergMarquardtResult(NamedTuple):
     constraint_jacobian: jax.Array
     costs: list
     evaluations: int
+    trials: int
     steps: int
     converged: bool
 
 
-def null_space(C):
-    r"""$(Q_1, R_1, N)$: $C^T = Q_1R_1$ and an orthonormal basis $N$ of the null space of $C$."""
-    m = C.shape[0]
-    Q, R = jnp.linalg.qr(C.T, mode="complete")
-    return Q[:, :m], R[:m], Q[:, m:]
-
-
 @jax.jit
-def _step(r, J, c, C, damping):
-    """The constrained damped Gauss–Newton step and the merit reduction it predicts."""
-    if C.shape[0]:
-        Q1, R1, N = null_space(C)
-        delta_p = -Q1 @ jax.scipy.linalg.solve_triangular(R1.T, c, lower=True)
-    else:
-        N, delta_p = jnp.eye(J.shape[1], dtype=J.dtype), jnp.zeros(J.shape[1], J.dtype)
-    A, b = J @ N, r + J @ delta_p
-    scale = jnp.sqrt(jnp.maximum(jnp.sum(A * A, axis=0), jnp.finfo(A.dtype).tiny))
-    stacked = jnp.concatenate([A, jnp.sqrt(damping) * jnp.diag(scale)])
-    y = jnp.linalg.lstsq(stacked, jnp.concatenate([-b, jnp.zeros_like(scale)]))[0]
+def _step(r, J, c, C, damping, units, resolution):
+    """The damped Gauss–Newton step of the stacked residuals, in the natural units and only
+    along directions the residuals resolve, and the reduction it predicts."""
+    A, b = jnp.concatenate([J, C]) * units, jnp.concatenate([r, c])
+    left, singular, right = jnp.linalg.svd(A, full_matrices=False)
+    resolved = singular * resolution > 1.0
+    gain = jnp.where(resolved, singular / (singular**2 + damping), 0.0)
+    y = -(right.T * gain) @ (left.T @ b)
     model = b + A @ y
-    predicted = 0.5 * (r @ r + c @ c - model @ model)
-    return delta_p + N @ y, predicted
+    return units * y, 0.5 * (b @ b - model @ model)
 
 
 def levenberg_marquardt(
     evaluate: Callable,
+    residuals: Callable,
     z0,
     *,
     max_steps: int = 100,
     xtol: float = 1e-10,
-    ftol: float = 1e-10,
+    ftol: float = 1e-8,
+    units=None,
+    resolution: float = 10.0,
     callback: Callable | None = None,
 ) -> LevenbergMarquardtResult:
     """Minimize ½‖r(z)‖² subject to c(z) = 0 with the caller's exact Jacobians.
@@ -83,10 +79,16 @@ def levenberg_marquardt(
 
     - `evaluate`: `z -> (r, J, c, C)`: the residuals and their Jacobian, the constraints
       $c(z) = 0$ and theirs (compiled by the caller; `c` may be empty).
+    - `residuals`: `z -> (r, c)` alone, for trial steps (the Jacobian is evaluated only at
+      the steps taken).
     - `z0`: the starting point.
-    - `max_steps`: the most evaluations after the first.
+    - `max_steps`: the most trial steps.
     - `xtol`: stop when a step is below `xtol (‖z‖ + xtol)`.
     - `ftol`: stop when an accepted step reduces the cost by less than `ftol` of it.
+    - `units`: each variable's natural unit (default 1): the damping is $\lambda\|\delta/u\|^2$.
+    - `resolution`: steps move only along directions the residuals determine to better than
+      this many natural units (singular values of $[J; C]\,\mathrm{diag}(u)$ above
+      `1/resolution`); the others stay where they start.
     - `callback`: called as `callback(step, z, cost, damping)` after every accepted step.
 
     **Returns:**
@@ -94,22 +96,25 @@ def levenberg_marquardt(
     A `LevenbergMarquardtResult`.
     """
     z = jnp.asarray(z0)
+    units = jnp.ones_like(z) if units is None else jnp.asarray(units, z.dtype)
     r, J, c, C = evaluate(z)
     cost = 0.5 * float(r @ r + c @ c)
-    costs, evaluations, steps = [cost], 1, 0
+    costs, evaluations, trials, steps = [cost], 1, 0, 0
     damping, growth, converged = 1e-3, 2.0, False
-    while evaluations <= max_steps:
-        delta, predicted = _step(r, J, c, C, damping)
+    while trials < max_steps:
+        delta, predicted = _step(r, J, c, C, damping, units, resolution)
         if not np.isfinite(float(predicted)):
             break
-        r_new, J_new, c_new, C_new = evaluate(z + delta)
-        evaluations += 1
+        r_new, c_new = residuals(z + delta)
+        trials += 1
         cost_new = 0.5 * float(r_new @ r_new + c_new @ c_new)
         gain = (cost - cost_new) / max(float(predicted), np.finfo(float).tiny)
         small_step = float(jnp.linalg.norm(delta)) <= xtol * (float(jnp.linalg.norm(z)) + xtol)
         if np.isfinite(cost_new) and gain > 1e-4:
             reduction = cost - cost_new
-            z, r, J, c, C, cost = z + delta, r_new, J_new, c_new, C_new, cost_new
+            z, cost = z + delta, cost_new
+            r, J, c, C = evaluate(z)
+            evaluations += 1
             costs.append(cost)
             steps += 1
             damping *= max(1.0 / 3.0, 1.0 - (2.0 * gain - 1.0) ** 3)
@@ -125,4 +130,4 @@ def levenberg_marquardt(
                 break
             damping *= growth
             growth *= 2.0
-    return LevenbergMarquardtResult(z, r, J, c, C, costs, evaluations, steps, converged)
+    return LevenbergMarquardtResult(z, r, J, c, C, costs, evaluations, trials, steps, converged)

@@ -15,6 +15,7 @@ from .._scene import Scene
 from .._systems._base import AbstractInertialSystem
 from .._systems._multibody import AbstractMultibody
 from .._systems._pseudo_inertia import (
+    inertial_from_pseudo_inertia,
     log_cholesky_from_pseudo_inertia,
     pseudo_inertia_from_log_cholesky,
 )
@@ -117,6 +118,15 @@ class Parameters(eqx.Module):
             size = np.size(self._constant(n))
             labels += [f"log {n}"] if size == 1 else [f"log {n}[{k}]" for k in range(size)]
         return tuple(labels)
+
+    def scales(self, theta) -> np.ndarray:
+        r"""Each entry's natural unit at $\theta$: 1 for the logarithms, the body's radius of
+        gyration for the log-Cholesky entries that are lengths ($s_{ij}$, $t_i$)."""
+        n = self._coordinates
+        m, _, J = inertial_from_pseudo_inertia(self.pseudo_inertias(theta))
+        radius = np.sqrt(np.trace(np.asarray(J), axis1=1, axis2=2) / (2 * np.asarray(m)))
+        per_body = [np.where(np.arange(n) >= 4, r, 1.0) for r in radius]
+        return np.concatenate([*per_body, np.ones(self.size - len(self.bodies) * n)])
 
     def pseudo_inertias(self, theta):
         r"""The free bodies' pseudo-inertias at $\theta$, shape `(k, 4, 4)`."""

@@ -14,8 +14,9 @@ momentum, the work of the non-conservative ones the energy) are linear in
 $(\pi, \bar\mu, \bar E)$ with the unknown constants $\bar\mu, \bar E$: a convex least-squares
 problem (the momentum regressor of a free-floating system). On a prescribed base the
 shape equation itself is linear in $\pi$ (the torque regressor of a robot arm):
-$Q_H$ required by the measured motion (`driven_shape_force`, $\ddot q$ by differences of the
-measured $\dot q$) equals the effects' $Q_H$, inputs included. Either is solved with the gauge's
+$Q_H$ required by the measured motion (`driven_shape_force`, $\ddot q$ the slope of local
+quadratic fits to the measured $\dot q$: differences would amplify its noise) equals the
+effects' $Q_H$, inputs included. Either is solved with the gauge's
 pseudo-measurements and the integrals by the trapezoidal rule. Its solution is projected
 onto physical bodies (each $P_b$'s eigenvalues floored at a small fraction of its largest)
 and returned as log-Cholesky coordinates. Directions the balances determine weakly or not
@@ -70,6 +71,24 @@ def _project(P, fixed_centre: bool):
     w, V = jnp.linalg.eigh(P)
     w = jnp.maximum(w, _FLOOR * jnp.max(w, axis=-1, keepdims=True))
     return (V * w[..., None, :]) @ jnp.swapaxes(V, -1, -2)
+
+
+_SMOOTHING = 7  # samples on each side of the local fits that estimate accelerations
+
+
+def smoothed_derivative(ts, values, half_width: int = _SMOOTHING):
+    """The time derivative of sampled `values` `(n, ...)` (NumPy): at each sample, the slope
+    of the least-squares quadratic through the `2 half_width + 1` samples around it (fewer
+    near the ends; Savitzky & Golay 1964), so that measurement noise is not amplified by
+    1/dt as differences would amplify it."""
+    ts, values = np.asarray(ts), np.asarray(values)
+    n = values.shape[0]
+    weights = np.zeros((n, n))
+    for i in range(n):
+        lo, hi = max(0, i - half_width), min(n, i + half_width + 1)
+        tau = ts[lo:hi] - ts[i]
+        weights[i, lo:hi] = np.linalg.pinv(np.stack([np.ones_like(tau), tau, tau * tau], 1))[1]
+    return np.tensordot(weights, values, axes=1)
 
 
 def _cumulative_trapezoid(ts, values):
@@ -156,7 +175,8 @@ def warm_start(
             *[jnp.ravel(v) for v in parameters.joint_constant_values(theta0).values()],
         ]
     )
-    solution = _solve(linear, gauge, pi0, states, measurements.ts)
+    accelerations = smoothed_derivative(measurements.ts, states.qdot)
+    solution = _solve(linear, gauge, pi0, states, measurements.ts, accelerations)
     k = len(parameters.bodies)
     P = _project(_matrix(solution[: 10 * k].reshape(k, 10)), parameters.scene.system.fixed_centres)
     theta = log_cholesky_from_pseudo_inertia(P)[
@@ -166,7 +186,7 @@ def warm_start(
     return jnp.concatenate([theta.reshape(-1), constants])
 
 
-def _floating_equations(linear: _Linear, gauge: AbstractGauge, pi0, states, ts):
+def _floating_equations(linear: _Linear, gauge: AbstractGauge, pi0, states, ts, accelerations):
     """The momentum and energy balances of a floating system, with the unknowns
     $(\pi, \bar\mu, \bar E)$: the weighted residual function and its starting point."""
 
@@ -196,13 +216,13 @@ def _floating_equations(linear: _Linear, gauge: AbstractGauge, pi0, states, ts):
     return weighted, unknowns0
 
 
-def _driven_equations(linear: _Linear, gauge: AbstractGauge, pi0, states, ts):
+def _driven_equations(linear: _Linear, gauge: AbstractGauge, pi0, states, ts, accelerations):
     r"""The shape equation of a prescribed base, $Q_H$ required by the measured motion minus
     the effects' (inputs included), linear in $\pi$; $\ddot q$ by central differences of the
     measured $\dot q$."""
     base = linear.parameters.scene.base
     _, _, xi_dot = jax.vmap(base.at)(ts)
-    qddot = jnp.gradient(states.qdot, ts, axis=0)
+    qddot = accelerations
 
     def balance(pi):
         return jax.vmap(linear.driven_balance, (None, 0, 0, 0, 0, 0, 0, 0))(
@@ -224,15 +244,16 @@ def _gauge_rows(parameters: Parameters, gauge: AbstractGauge, pi):
 
 
 @eqx.filter_jit
-def _solve(linear: _Linear, gauge: AbstractGauge, pi0, states, ts):
+def _solve(linear: _Linear, gauge: AbstractGauge, pi0, states, ts, accelerations):
     """The least-squares π of the balances (`_floating_equations` or `_driven_equations`)."""
     driven = isinstance(linear.parameters.scene.base, PrescribedBase)
     equations = _driven_equations if driven else _floating_equations
-    weighted, unknowns0 = equations(linear, gauge, pi0, states, ts)
+    weighted, unknowns0 = equations(linear, gauge, pi0, states, ts, accelerations)
     e0 = weighted(unknowns0)
     E = jax.jacfwd(weighted)(unknowns0)
     # Columns scaled to their norms, and a ridge on the change of π (see `_RIDGE`).
-    scale = jnp.linalg.norm(E, axis=0) + jnp.finfo(E.dtype).tiny
+    norms = jnp.linalg.norm(E, axis=0)
+    scale = jnp.maximum(norms, 1e-8 * jnp.max(norms))  # columns the balances barely see stay put
     weight = _RIDGE[bool(linear.extra_effects)]
     ridge = weight * (jnp.arange(unknowns0.shape[0]) < pi0.shape[0])
     A = jnp.concatenate([E / scale, jnp.diag(ridge)])

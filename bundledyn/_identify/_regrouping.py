@@ -22,7 +22,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from .._systems._multibody import Multibody, Resectioned
-from .._systems._pseudo_inertia import log_cholesky_from_pseudo_inertia
+from .._systems._pseudo_inertia import pseudo_inertia_from_log_cholesky
 from ._parameters import Parameters
 
 __all__ = ["named_directions"]
@@ -88,6 +88,11 @@ def _transfers(kind, geometry):
     return []
 
 
+def _padded(coordinates):
+    """Ten log-Cholesky coordinates of seven (a centre fixed at the origin) or ten."""
+    return jnp.concatenate([coordinates, jnp.zeros(10 - coordinates.shape[0], coordinates.dtype)])
+
+
 def named_directions(parameters: Parameters, theta) -> dict:
     r"""Directions of $\theta$ with a physical name, each a `(size,)` array: the joints'
     regroupings (module docstring) between free bodies, the overall mass scale and each
@@ -97,11 +102,20 @@ def named_directions(parameters: Parameters, theta) -> dict:
     n = 7 if system.fixed_centres else 10
     P = parameters.pseudo_inertias(theta)
 
+    coordinates = np.asarray(theta)[: len(free) * n].reshape(len(free), n)
+    forward = [
+        np.asarray(
+            jax.jacfwd(lambda c: pseudo_inertia_from_log_cholesky(_padded(c)))(jnp.asarray(c))
+        )
+        for c in coordinates
+    ]  # ∂P/∂θ of each body, (4, 4, n): finite however degenerate the body
+
     def direction(delta):
         """θ-direction of the pseudo-inertia change `delta`, `(k, 4, 4)` over free bodies."""
-        tangent = jax.jvp(log_cholesky_from_pseudo_inertia, (P,), (jnp.asarray(delta),))[1]
         out = np.zeros(parameters.size)
-        out[: len(free) * n] = np.asarray(tangent)[:, :n].reshape(-1)
+        for i, jacobian in enumerate(forward):
+            step = np.linalg.lstsq(jacobian.reshape(16, n), delta[i].reshape(16), rcond=None)[0]
+            out[i * n : (i + 1) * n] = step
         return out
 
     names = parameters.body_names

@@ -24,10 +24,10 @@ import numpy as np
 
 from .. import lie
 from .._scene import PrescribedBase, Scene
-from .._simulate import simulate
 from .._solver._rkmk import RKMK87
 from .._state import State
 from .._systems._multibody import AbstractMultibody
+from .._term import SceneTerm
 from ._data import Measurements, Noise
 from ._parameters import Parameters
 
@@ -75,16 +75,20 @@ class _FloatingChart(eqx.Module):
         """$s$ of a state at its own reference pose ($\delta = 0$), batched over windows."""
         return jnp.concatenate([jnp.zeros_like(xi), q, xi, qdot], axis=-1)
 
-    def difference(self, end: State, start: State, noise: Noise):
-        """`end - start` in the chart, each part divided by its channel's noise level."""
+    def units(self, noise: Noise):
+        """Each coordinate's natural unit: its channel's noise level."""
         d = self.d
-        scale = jnp.concatenate(
+        return jnp.concatenate(
             [
                 jnp.full(3, noise.rotation), jnp.full(3, noise.position), jnp.full(d, noise.q),
                 jnp.full(3, noise.angular_velocity), jnp.full(3, noise.linear_velocity),
                 jnp.full(d, noise.qdot),
             ]
         )  # fmt: skip
+
+    def difference(self, end: State, start: State, noise: Noise):
+        """`end - start` in the chart, each part divided by its channel's noise level."""
+        scale = self.units(noise)
         difference = jnp.concatenate(
             [
                 lie.so3_log(start.g[:3, :3].T @ end.g[:3, :3]), end.g[:3, 3] - start.g[:3, 3],
@@ -109,8 +113,12 @@ class _DrivenChart(eqx.Module):
     def coordinates(self, q, xi, qdot):
         return jnp.concatenate([q, qdot], axis=-1)
 
+    def units(self, noise: Noise):
+        return jnp.concatenate([jnp.full(self.d, noise.q), jnp.full(self.d, noise.qdot)])
+
     def difference(self, end: State, start: State, noise: Noise):
-        return jnp.concatenate([(end.q - start.q) / noise.q, (end.qdot - start.qdot) / noise.qdot])
+        units = self.units(noise)
+        return jnp.concatenate([end.q - start.q, end.qdot - start.qdot]) / units
 
 
 def window_chart(scene: Scene):
@@ -224,19 +232,25 @@ class ShootingProblem(eqx.Module):
     def window(self, theta, s, k_index, measured, times, g_ref):
         """One window: its weighted measurement residuals and its predicted end state."""
         scene = self.scene(theta)
-        sub = self.windows.substeps
-        traj = simulate(
-            scene,
-            self.chart.state(s, g_ref),
+        term = SceneTerm(scene)
+        # diffrax directly, not `simulate`: the parameters and states here are physical by
+        # construction, and a trial step that leaves the reasonable range must come back as
+        # a large or non-finite residual (a rejected step), not as a run-time error.
+        solution = diffrax.diffeqsolve(
+            term,
+            RKMK87(dense_output=False),
+            times[0],
             times[-1],
-            t0=times[0],
-            solver=RKMK87(),
-            stepsize_controller=diffrax.StepTo(ts=times),
+            None,
+            term.encode(times[0], self.chart.state(s, g_ref)),
             saveat=diffrax.SaveAt(t0=True, steps=True),
+            stepsize_controller=diffrax.StepTo(ts=times),
             adjoint=diffrax.ForwardMode(),
             max_steps=times.shape[0] - 1,
         )
-        states = jax.vmap(State)(traj.g[::sub], traj.q[::sub], traj.xi[::sub], traj.qdot[::sub])
+        sub = self.windows.substeps
+        samples = jax.tree.map(lambda x: x[::sub], solution.ys)
+        states = jax.vmap(term.decode)(solution.ts[::sub], samples)
         residuals = self._predicted_residuals(scene.system, states, k_index, measured)
         end = jax.tree.map(lambda x: x[-1], states)
         return residuals, end
@@ -246,6 +260,35 @@ class ShootingProblem(eqx.Module):
         states (empty without fitted states)."""
         P = self.parameters.size
         return z[:P], z[P:].reshape(-1, self.chart.size)
+
+    def _windows(self, z, window_states):
+        """The windows' states, their successors' and the references, batched over windows."""
+        theta, fitted = self.split(z)
+        S = fitted if self.windows.fit_states else window_states
+        refs = self.references
+        return theta, S, jnp.roll(S, -1, axis=0), refs, jnp.roll(refs, -1, axis=0)
+
+    def residuals(self, z, window_states):
+        r"""The weighted data residuals and continuity defects at $z$ (no Jacobian): what a
+        trial step is judged by.
+
+        **Arguments:** as `residuals_and_jacobian`.
+
+        **Returns:**
+
+        `(r, c)`.
+        """
+        theta, S, S_next, refs, refs_next = self._windows(z, window_states)
+
+        def one(s, s_next, k_idx, meas, ts, g_ref, g_ref_next):
+            r, end = self.window(theta, s, k_idx, meas, ts, g_ref)
+            return r, self._continuity(end, s_next, g_ref_next)
+
+        r, c = jax.vmap(one)(
+            S, S_next, self.sample_index, self.measured, self.step_times, refs, refs_next
+        )
+        c = c[:-1].reshape(-1) if self.windows.fit_states else jnp.zeros((0,), r.dtype)
+        return r.reshape(-1), c
 
     def residuals_and_jacobian(self, z, window_states):
         r"""The weighted data residuals and continuity defects at $z$, with their Jacobians.
@@ -262,13 +305,9 @@ class ShootingProblem(eqx.Module):
         continuity defects of windows $1..K-1$, `((K-1) n_s,)`, and $\partial c/\partial z$
         (empty without fitted states).
         """
-        theta, fitted = self.split(z)
         fit = self.windows.fit_states
-        S = fitted if fit else window_states
-        K, P = S.shape[0], theta.shape[0]
-        n_s = S.shape[1]
-        refs = self.references
-        S_next, refs_next = jnp.roll(S, -1, axis=0), jnp.roll(refs, -1, axis=0)
+        theta, S, S_next, refs, refs_next = self._windows(z, window_states)
+        K, P, n_s = S.shape[0], theta.shape[0], S.shape[1]
 
         def one(s, s_next, k_idx, meas, ts, g_ref, g_ref_next):
             def outputs(x):
