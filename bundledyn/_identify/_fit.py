@@ -161,7 +161,7 @@ def fit(
     - `gauge`: what fixes the mass scale (`KnownMass`, `KnownBodies` or `MeasuredInputs`):
       required, because free motion alone does not determine it.
     - `inputs`: the known forces (`Inputs`), added to the scene as effects.
-    - `windows`: the shooting `Windows` (default: one window per 50 sample intervals,
+    - `windows`: the shooting `Windows` (default: one window per 20 sample intervals,
       fitted window states).
     - `warm_start`: start from the equation-error solution (`warm_start`) when the
       measurements hold the whole state ($q$ and $\dot q$ on a prescribed base); otherwise
@@ -180,7 +180,7 @@ def fit(
     begin = time.perf_counter()
     gauge.check(parameters, inputs)
     n = int(np.shape(measurements.ts)[0])
-    windows = Windows(count=max(1, (n - 1) // 50)) if windows is None else windows
+    windows = Windows(count=max(1, (n - 1) // 20)) if windows is None else windows
     extra = [] if inputs is None else inputs.effects()
     theta0 = parameters.initial()
     start = None

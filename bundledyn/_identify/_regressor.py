@@ -49,7 +49,7 @@ _FLOOR = 1e-6  # smallest eigenvalue of a projected pseudo-inertia, relative to 
 # excite), strong without (the balances are then homogeneous in π, and least squares on
 # noisy data drives them toward their trivial solution: the rotational inertia of a
 # torque-free body, whose scale no balance fixes, shrinks toward zero as the noise grows).
-_RIDGE = {True: 1e-6, False: 1e-1}
+_RIDGE = {True: 1e-2, False: 1e-1}
 
 
 def _entries(P):
