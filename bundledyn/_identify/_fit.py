@@ -111,7 +111,7 @@ def _window_starts(windows: Windows, parameters: Parameters, measurements: Measu
 
 
 def _measured_states(scene: Scene, measurements: Measurements) -> State | None:
-    """The states at the samples, if measured: the whole state of a floating base; $q$ and
+    r"""The states at the samples, if measured: the whole state of a floating base; $q$ and
     $\dot q$ on a prescribed base, whose motion gives the rest."""
     if isinstance(scene.base, PrescribedBase):
         if measurements.q is None or measurements.qdot is None:
@@ -152,7 +152,7 @@ def fit(
     max_steps: int = 50,
     progress: bool = False,
 ) -> FitResult:
-    """Identify the free parameters of a scene from measured motion.
+    r"""Identify the free parameters of a scene from measured motion.
 
     **Arguments:**
 
@@ -224,12 +224,16 @@ def fit(
     # Continuation in the continuity: first the windows join loosely (at the data's noise
     # level, like process noise), which keeps the first steps near-linear however far the
     # noisy window starts and the nominal parameters put the windows' ends from their
-    # successors' starts; then as tightly as `windows.continuity` asks.
-    loose = eqx.tree_at(lambda p: p.windows.continuity, problem, max(windows.continuity, 1.0))
-    # The loose stage only needs to bring the windows near the data: a coarse tolerance.
-    stages = [(loose, 1e-4), (problem, 1e-8)]
-    if not (windows.fit_states and windows.count > 1):
-        stages = stages[1:]
+    # successors' starts; then ever more tightly, down to `windows.continuity`.
+    # Each stage tightens the continuity tenfold, from the noise level down; the stages
+    # before the last only need to bring the windows near the data: a coarse tolerance.
+    stages = [(problem, 1e-8)]
+    if windows.fit_states and windows.count > 1:
+        looser = 1.0
+        while looser > windows.continuity * 1.01:
+            stage = eqx.tree_at(lambda p: p.windows.continuity, problem, looser)
+            stages.insert(-1, (stage, 1e-4))
+            looser /= 10.0
     costs, evaluations, trials, steps = [], 0, 0, 0
     for stage, tolerance in stages:
         solution = levenberg_marquardt(

@@ -73,7 +73,7 @@ def levenberg_marquardt(
     resolution: float = 10.0,
     callback: Callable | None = None,
 ) -> LevenbergMarquardtResult:
-    """Minimize ½‖r(z)‖² subject to c(z) = 0 with the caller's exact Jacobians.
+    r"""Minimize ½‖r(z)‖² subject to c(z) = 0 with the caller's exact Jacobians.
 
     **Arguments:**
 

@@ -187,7 +187,7 @@ def warm_start(
 
 
 def _floating_equations(linear: _Linear, gauge: AbstractGauge, pi0, states, ts, accelerations):
-    """The momentum and energy balances of a floating system, with the unknowns
+    r"""The momentum and energy balances of a floating system, with the unknowns
     $(\pi, \bar\mu, \bar E)$: the weighted residual function and its starting point."""
 
     def balances(pi):

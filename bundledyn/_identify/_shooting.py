@@ -72,7 +72,7 @@ class _FloatingChart(eqx.Module):
         return State(g_ref @ lie.se3_exp(s[:6]), s[6 : 6 + d], s[6 + d : 12 + d], s[12 + d :])
 
     def coordinates(self, q, xi, qdot):
-        """$s$ of a state at its own reference pose ($\delta = 0$), batched over windows."""
+        r"""$s$ of a state at its own reference pose ($\delta = 0$), batched over windows."""
         return jnp.concatenate([jnp.zeros_like(xi), q, xi, qdot], axis=-1)
 
     def units(self, noise: Noise):
