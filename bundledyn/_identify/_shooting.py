@@ -256,7 +256,7 @@ class ShootingProblem(eqx.Module):
         return residuals, end
 
     def split(self, z):
-        """$(\theta, S)$ of a decision vector: the parameters and the `(K, n_s)` window
+        r"""$(\theta, S)$ of a decision vector: the parameters and the `(K, n_s)` window
         states (empty without fitted states)."""
         P = self.parameters.size
         return z[:P], z[P:].reshape(-1, self.chart.size)

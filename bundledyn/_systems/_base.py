@@ -92,7 +92,7 @@ class AbstractInertialSystem(AbstractSystem):
     r"""A system whose mass data are bodies' pseudo-inertias: the parameters identification fits.
 
     Each body's ten inertial parameters are its 4×4 pseudo-inertia
-    $P = egin{bmatrix}\Sigma & mc\ mc^T & m\end{bmatrix}$ in its own frame
+    $P = \begin{bmatrix}\Sigma & mc \\ mc^T & m\end{bmatrix}$ in its own frame
     (`bundledyn.identify.pseudo_inertia`); the system's metric is linear in them.
 
     `fixed_centres` is `True` for systems whose section frame sits at the centre of mass by
