@@ -152,7 +152,9 @@ def demo(args) -> int:
     from bundledyn import lie
 
     scene_file = bd.SceneFile.load(bd.scenes / "falling_cat.toml")
-    cat, bend = scene_file.scene.system, scene_file.scene.shape.q_of_t
+    cat, shape = scene_file.scene.system, scene_file.scene.shape
+    assert isinstance(shape, bd.Prescribed)  # the scene file prescribes the cat's bending
+    bend = shape.q_of_t
     print("bundledyn demo: a falling cat turns itself over with zero angular momentum")
     print(f"  scene file: {scene_file.path}")
     traj, elapsed = _solve(scene_file)

@@ -17,6 +17,7 @@ from typing import NamedTuple
 import equinox as eqx
 import jax
 import jax.numpy as jnp
+from jax.typing import ArrayLike
 from jaxtyping import Array, Float
 
 from . import lie
@@ -27,7 +28,7 @@ from ._systems._multibody import AbstractMultibody
 class Kinematics(NamedTuple):
     """The motion at one instant, in the Galilean frame: time, pose, shape and velocities."""
 
-    t: Float[Array, ""]
+    t: Float[ArrayLike, ""]
     g: Float[Array, "4 4"]
     q: Float[Array, " d"]
     xi: Float[Array, "6"]
@@ -54,7 +55,9 @@ class AbstractEffect(eqx.Module):
     """Something that acts on the system: it supplies generalized forces $(F_b, Q_H)$."""
 
     @abc.abstractmethod
-    def generalized_force(self, system: AbstractSystem, kin: Kinematics):
+    def generalized_force(
+        self, system: AbstractSystem, kin: Kinematics
+    ) -> tuple[Float[Array, "6"], Float[Array, " d"]]:
         """The generalized force `(F_b (6,), Q_H (d,))` at the kinematics `kin`."""
 
     def potential(self, system: AbstractSystem, t, g, q):
@@ -139,7 +142,9 @@ class AbstractCentralGravity(AbstractPotential):
     centre: eqx.AbstractVar[Float[Array, "3"]]
 
     @abc.abstractmethod
-    def mass_elements(self, system: AbstractSystem, g, q):
+    def mass_elements(
+        self, system: AbstractSystem, g, q
+    ) -> tuple[Float[Array, " k"], Float[Array, "k 3"], Float[Array, "k 3 3"]]:
         """The masses `(k,)`, centres of mass `(k, 3)` and rotational inertias about them
         `(k, 3, 3)` of the elements the expansion is applied to, in the Galilean frame."""
 
@@ -200,19 +205,30 @@ class BodywiseGravityGradient(AbstractCentralGravity):
         self.centre = jnp.asarray(centre, dtype=float)
 
     def mass_elements(self, system, g, q):
-        _require_tree(system, "BodywiseGravityGradient")
-        poses = g @ system.body_poses(q)
+        tree = _require_tree(system, "BodywiseGravityGradient")
+        poses = g @ tree.body_poses(q)
         R = poses[:, :3, :3]
-        c = poses[:, :3, 3] + jnp.einsum("nij,nj->ni", R, system.com)
-        return system.mass, c, jnp.einsum("nij,njk,nlk->nil", R, system.inertia, R)
+        c = poses[:, :3, 3] + jnp.einsum("nij,nj->ni", R, tree.com)
+        return tree.mass, c, jnp.einsum("nij,njk,nlk->nil", R, tree.inertia, R)
 
 
-def _require_tree(system, what):
+def _require_tree(system, what) -> AbstractMultibody:
+    """`system` itself, once it is known to be a tree of bodies.
+
+    **Arguments:**
+
+    - `system`: the system an effect acts on; `what`: the effect, for the message.
+
+    **Returns:**
+
+    `system`, typed as the `AbstractMultibody` it must be.
+    """
     if not isinstance(system, AbstractMultibody):
         raise ValueError(
             f"`{what}` acts on the bodies of a tree and needs a Multibody, got "
             f"{type(system).__name__}."
         )
+    return system
 
 
 def _shape_matrix(value, d, name):
@@ -255,7 +271,7 @@ class ShapeSpring(AbstractPotential):
     stiffness: Array
     rest: Array | float
 
-    def __init__(self, stiffness, rest=0.0):
+    def __init__(self, stiffness, rest: ArrayLike = 0.0):
         self.stiffness = jnp.asarray(stiffness, dtype=float)
         self.rest = jnp.asarray(rest, dtype=float)
 
@@ -319,8 +335,8 @@ class ExternalWrench(AbstractEffect):
         w = self.fn(kin.t, kin.g, kin.q, kin.xi, kin.qdot)
         if self.body is None:
             return w, jnp.zeros_like(kin.q)
-        _require_tree(system, f"ExternalWrench(body={self.body})")
-        r, Jhat = system.velocity_jacobians(kin.q)
+        tree = _require_tree(system, f"ExternalWrench(body={self.body})")
+        r, Jhat = tree.velocity_jacobians(kin.q)
         # The body twist is Ad_{r⁻¹} Ĵ [ξ; q̇], so the wrench's virtual power gives Ĵᵀ Ad_{r⁻¹}ᵀ w.
         generalized = Jhat[self.body].T @ lie.Ad(lie.se3_inv(r[self.body])).T @ w
         return generalized[:6], generalized[6:]

@@ -12,6 +12,7 @@ from collections.abc import Callable
 import equinox as eqx
 import jax
 import jax.numpy as jnp
+from jax.typing import ArrayLike
 from jaxtyping import Array, Float
 
 from . import lie
@@ -84,7 +85,7 @@ class FreeFalling(AbstractFrame):
     g: Float[Array, ""]
     direction: Float[Array, "3"]
 
-    def __init__(self, g=9.81, direction=(0.0, 0.0, -1.0)):
+    def __init__(self, g: ArrayLike = 9.81, direction=(0.0, 0.0, -1.0)):
         self.g = jnp.asarray(g, dtype=float)
         direction = jnp.asarray(direction, dtype=float)
         self.direction = direction / jnp.linalg.norm(direction)

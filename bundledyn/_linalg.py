@@ -15,6 +15,7 @@ rollouts slower.
 import functools
 import math
 import operator
+from typing import cast
 
 import jax
 import jax.lax as lax
@@ -86,6 +87,8 @@ def _broadcast_product(letters, order, n_out, operands):
         perm = sorted(range(len(spec)), key=lambda i: order.index(spec[i]))
         own = dict(zip(spec, x.shape, strict=True))
         product = product * jnp.transpose(x, perm).reshape([own.get(c, 1) for c in order])
+    # `_plan` matched an operand to each term (one at least): an array, not the starting 1.
+    product = cast(Array, product)
     kept = product.shape[:n_out]
     return product.reshape(*kept, math.prod(product.shape[n_out:]))
 

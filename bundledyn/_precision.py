@@ -4,6 +4,7 @@ import warnings
 
 import jax
 import jax.numpy as jnp
+from jax.typing import ArrayLike
 
 from ._systems._validation import concrete
 
@@ -21,7 +22,7 @@ def enable_x64(enable: bool = True) -> None:
     jax.config.update("jax_enable_x64", enable)
 
 
-def warn_if_tolerance_too_tight(tolerance: float, dtype) -> None:
+def warn_if_tolerance_too_tight(tolerance: ArrayLike, dtype) -> None:
     """Warn when a requested tolerance is below what `dtype` can resolve.
 
     **Arguments:**

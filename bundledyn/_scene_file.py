@@ -75,7 +75,7 @@ class _Table:
     def has(self, key):
         return key in self.data
 
-    def raw(self, key, default=...):
+    def raw(self, key, default: Any = ...):
         self.used.add(key)
         if key not in self.data:
             if default is ...:
@@ -83,7 +83,7 @@ class _Table:
             return default
         return self.data[key]
 
-    def number(self, key, default=...):
+    def number(self, key, default: Any = ...):
         if not self.has(key) and default is not ...:
             return self.raw(key, default)
         value = self.raw(key)
@@ -91,13 +91,13 @@ class _Table:
             raise self.fail(key, "must be a number.")
         return float(value)
 
-    def boolean(self, key, default=...):
+    def boolean(self, key, default: Any = ...):
         value = self.raw(key, default)
         if not isinstance(value, bool):
             raise self.fail(key, "must be true or false.")
         return value
 
-    def string(self, key, default=..., choices=None):
+    def string(self, key, default: Any = ..., choices=None):
         if not self.has(key) and default is not ...:
             return self.raw(key, default)
         value = self.raw(key)
@@ -107,7 +107,7 @@ class _Table:
             raise self.fail(key, f"must be one of {', '.join(sorted(choices))}.")
         return value
 
-    def array(self, key, shape, default=...):
+    def array(self, key, shape, default: Any = ...):
         """A float array of `shape`."""
         if not self.has(key) and default is not ...:
             return np.asarray(self.raw(key, default), dtype=float)
@@ -120,7 +120,7 @@ class _Table:
             raise self.fail(key, "must be finite.")
         return a
 
-    def vector_or_scalar(self, key, n, default=...):
+    def vector_or_scalar(self, key, n, default: Any = ...):
         """A length-`n` vector; a scalar is repeated."""
         value = self.raw(key, default)
         a = np.asarray(value, dtype=float) if _numeric(value) else None
@@ -128,7 +128,7 @@ class _Table:
             raise self.fail(key, f"must be a number or a list of {n} numbers.")
         return np.broadcast_to(a, (n,)).copy()
 
-    def table(self, key, default=...):
+    def table(self, key, default: Any = ...):
         return _Table(self.file, self.field(key), self.raw(key, default))
 
     def tables(self, key):

@@ -190,6 +190,10 @@ def simulate(
         progress_meter=diffrax.TextProgressMeter() if progress else diffrax.NoProgressMeter(),
         throw=throw,
     )
+    if sol.ts is None or sol.ys is None:
+        raise ValueError(
+            "`saveat` must save states (`t0`, `t1`, `ts` or `steps`), not only `dense`."
+        )
     g, x = sol.ys
     stats = dict(sol.stats)
     if not isinstance(solver, AbstractLieGroupSolver):

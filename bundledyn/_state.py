@@ -48,11 +48,10 @@ class State(eqx.Module):
                 f"`State.q` and `State.qdot` must be 1-D of equal length, got {self.q.shape} "
                 f"and {self.qdot.shape}."
             )
-        values = [concrete(v) for v in (self.g, self.q, self.xi, self.qdot)]
-        if any(v is None for v in values):
+        g, q, xi, qdot = (concrete(v) for v in (self.g, self.q, self.xi, self.qdot))
+        if g is None or q is None or xi is None or qdot is None:
             return
-        g, *rest = values
-        if not all(np.all(np.isfinite(v)) for v in values):
+        if not all(np.all(np.isfinite(v)) for v in (g, q, xi, qdot)):
             raise ValueError(_NOT_FINITE)
         R = g[:3, :3]
         error = np.abs(R.T @ R - np.eye(3)).max()

@@ -28,6 +28,7 @@ from ._dynamics import (
     shape_acceleration,
 )
 from ._effects import Kinematics
+from ._frames import AbstractFrame
 from ._geometry import connection, locked_velocity
 from ._linalg import dot, matmul
 from ._scene import Prescribed, PrescribedBase, Scene
@@ -93,11 +94,11 @@ class AbstractBodyTerm(diffrax.AbstractTerm):
         return jtu.tree_unflatten(treedef, [tangent_of_twist(g, xi), *rest])
 
 
-def _frame_shift(scene: Scene, t, g):
+def _frame_shift(frame: AbstractFrame, t, g):
     r"""$\operatorname{Ad}_{g^{-1}}\vartheta$, $\operatorname{Ad}_{g^{-1}}\dot\vartheta$ and $M$:
     what the scene's frame (moving by $M(t)$ with body velocity $\vartheta$) adds to the
     velocities of (2.9)–(2.10)."""
-    M, theta, theta_dot = scene.frame.motion_and_velocity(t)
+    M, theta, theta_dot = frame.motion_and_velocity(t)
     Ad_inv = lie.Ad(lie.se3_inv(g))
     return matmul(Ad_inv, theta), matmul(Ad_inv, theta_dot), M
 
@@ -110,7 +111,7 @@ def _body_field(scene: Scene, t, g, q, U, qdot):
     - \operatorname{Ad}_{g^{-1}}\dot\vartheta$ (seed 004, (2.9)–(2.10)).
     """
     if scene.frame is not None:
-        shift, shift_dot, M = _frame_shift(scene, t, g)
+        shift, shift_dot, M = _frame_shift(scene.frame, t, g)
         U, g = U + shift, matmul(M, g)
     geo = bundle_geometry(scene.system, q, U, qdot)
     xi = U - matmul(geo.A, qdot)
@@ -267,5 +268,5 @@ class SceneTerm(AbstractBodyTerm):
         xi = self._xi(q, U, qdot)
         if self.scene.frame is None:
             return Kinematics(t, g, q, xi, qdot)
-        shift, _, M = _frame_shift(self.scene, t, g)
+        shift, _, M = _frame_shift(self.scene.frame, t, g)
         return Kinematics(t, M @ g, q, xi + shift, qdot)

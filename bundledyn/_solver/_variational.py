@@ -122,8 +122,12 @@ class VariationalMidpoint(AbstractLieGroupSolver):
         U1 = jnp.linalg.solve(G1[:6, :6], m1)
         y1 = term.pack(g0 @ lie.se3_exp(Omega), q1, U1, v1[6:])
         error = jnp.max(jnp.abs(residual(z))) / (jnp.max(jnp.abs(p0)) + jnp.finfo(p0.dtype).tiny)
+        # Equinox's enumerations inherit their parent's items (`nonlinear_divergence` is
+        # Optimistix's): at run time it is diffrax's `RESULTS`, pyright sees Optimistix's.
         result = RESULTS.where(
-            error < self.tolerance, RESULTS.successful, RESULTS.nonlinear_divergence
+            error < self.tolerance,
+            RESULTS.successful,
+            RESULTS.nonlinear_divergence,  # pyright: ignore[reportArgumentType]
         )
         dense_info = dict(y0=y0, coeffs=(Omega[None], (y1[1] - y0[1])[None]))
         return y1, None, dense_info, None, result

@@ -105,7 +105,9 @@ def parts_from_mjcf(source) -> ModelParts:
     The `ModelParts`.
     """
     mujoco = _import_mujoco()
-    model = source if isinstance(source, mujoco.MjModel) else _compile(mujoco, source)
+    # MuJoCo's bindings are compiled and ship no type stubs: pyright cannot see `MjModel`.
+    is_model = isinstance(source, mujoco.MjModel)  # pyright: ignore[reportAttributeAccessIssue]
+    model = source if is_model else _compile(mujoco, source)
     return parts_from_mjmodel(model)
 
 

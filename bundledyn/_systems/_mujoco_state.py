@@ -25,7 +25,9 @@ def _layout(system: AbstractMultibody, free_root):
     screw_q, screw_pos, screw_vel, ball_q, ball_pos, ball_vel = [], [], [], [], [], []
     for kind, start in zip(t.kinds, t.q_start, strict=True):
         if kind == "screw":
-            screw_q.append(start), screw_pos.append(pos), screw_vel.append(vel)
+            screw_q.append(start)
+            screw_pos.append(pos)
+            screw_vel.append(vel)
             pos, vel = pos + 1, vel + 1
         elif kind == "ball":
             ball_q.append(start + np.arange(3))

@@ -56,7 +56,9 @@ class AbstractMultibody(AbstractInertialSystem):
         """
 
     @abc.abstractmethod
-    def velocity_jacobians(self, q):
+    def velocity_jacobians(
+        self, q: Float[Array, " d"]
+    ) -> tuple[Float[Array, "n 4 4"], Float[Array, "n 6 6+d"]]:
         r"""Body-velocity map of every body: $\hat J_a$ with $\nu_a^{\text{sec}} = \hat J_a[\xi;\dot q]$.
 
         **Arguments:**
@@ -71,7 +73,9 @@ class AbstractMultibody(AbstractInertialSystem):
         """
 
     @abc.abstractmethod
-    def root_in_section(self, q):
+    def root_in_section(
+        self, q: Float[Array, " d"]
+    ) -> tuple[Float[Array, "4 4"], Float[Array, "6 d"]]:
         r"""The root body's pose $r_0$ in the section frame and the joint columns $Z_0$ of its
         velocity there: $\nu_0 = \operatorname{Ad}_{r_0^{-1}}(\xi + Z_0\dot q)$.
 
@@ -394,6 +398,12 @@ class Resectioned(AbstractMultibody):
 
     tree: Multibody
     section: int = eqx.field(static=True)
+
+    # Written out: the `__init__` a type checker derives asks for the abstract fields too,
+    # which the properties below provide.
+    def __init__(self, tree: Multibody, section: int):
+        self.tree = tree
+        self.section = section
 
     def __check_init__(self):
         if not 0 <= self.section < self.tree.num_bodies:

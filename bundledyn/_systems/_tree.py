@@ -33,8 +33,12 @@ def tree_tables(links, n_bodies):
     kinds, factor_index, q_start, node_body, node_parent, first = [], [], [], [], [], []
     screws, anchors = [], []
     body_last = [0]
-    kinds.append("fixed"), factor_index.append(-1), q_start.append(0)
-    node_body.append(0), node_parent.append(-1), first.append(False)
+    kinds.append("fixed")
+    factor_index.append(-1)
+    q_start.append(0)
+    node_body.append(0)
+    node_parent.append(-1)
+    first.append(False)
     qi = 0
     for i, link in enumerate(links, start=1):
         factors = link.joint.factors() or (("fixed", None),)
@@ -46,10 +50,12 @@ def tree_tables(links, n_bodies):
             first.append(j == 0)
             q_start.append(qi)
             if kind == "screw":
-                factor_index.append(len(screws)), screws.append(value)
+                factor_index.append(len(screws))
+                screws.append(value)
                 qi += 1
             elif kind == "ball":
-                factor_index.append(len(anchors)), anchors.append(value)
+                factor_index.append(len(anchors))
+                anchors.append(value)
                 qi += 3
             else:
                 factor_index.append(-1)

@@ -1,7 +1,7 @@
 """An animation of the bodies of a trajectory, saved as a GIF."""
 
 import pathlib
-from typing import NamedTuple
+from typing import TYPE_CHECKING, NamedTuple, cast
 
 import equinox as eqx
 import jax
@@ -17,6 +17,9 @@ from .._systems._multibody import AbstractMultibody
 from .._systems._rigid_body import RigidBody
 from .._trajectory import Trajectory
 from ._canvas import new_figure
+
+if TYPE_CHECKING:
+    from mpl_toolkits.mplot3d import Axes3D
 
 
 class DrawnBody(NamedTuple):
@@ -155,7 +158,7 @@ def animate(
 
     fig = new_figure(size, size, dpi=dpi)
     fig.set_layout_engine(None)
-    ax = fig.add_axes((0.0, 0.0, 1.0, 1.0), projection="3d")
+    ax = cast("Axes3D", fig.add_axes((0.0, 0.0, 1.0, 1.0), projection="3d"))
     colours = [f"C{k % 10}" for k in range(len(bodies))]
 
     def draw(k):
