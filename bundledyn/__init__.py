@@ -45,6 +45,7 @@ from ._geometry import (
     shape_metric,
 )
 from ._holonomy import curvature_by_holonomy, horizontal_lift, square_loop_holonomy
+from ._identify_file import IdentificationFile
 from ._paths import models, scenes
 from ._precision import enable_x64
 from ._scene import FloatingBase, Free, Prescribed, PrescribedBase, Scene
@@ -125,6 +126,7 @@ __all__ = [
     "Gravity",
     "GravityGradient",
     "horizontal_lift",
+    "IdentificationFile",
     "identify",
     "inertia_covariant_derivative",
     "Kinematics",

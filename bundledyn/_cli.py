@@ -189,6 +189,16 @@ def demo(args) -> int:
     return 0
 
 
+def identify(args) -> int:
+    """Fit a model's parameters as an identification file says; write the results."""
+    from ._identify_file import identify_command
+
+    return identify_command(
+        args.config, pathlib.Path(args.out), progress=args.progress,
+        plots=not args.no_pictures and _pictures_available(),
+    )  # fmt: skip
+
+
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(
         prog="bundledyn",
@@ -211,6 +221,14 @@ def main(argv=None) -> int:
     p.add_argument("--tolerance", type=float, default=1e-10, help="largest residual (1e-10)")
     p.add_argument("--seed", type=int, default=0, help="random seed of the shapes")
     p.set_defaults(run=check)
+    p = commands.add_parser(
+        "identify", help="fit masses, centres and inertias to measured motion (TOML config)"
+    )
+    p.add_argument("config", help="the identification file (TOML)")
+    p.add_argument("--out", default=".", help="existing folder for the outputs (default: here)")
+    p.add_argument("--progress", action="store_true", help="print each accepted step")
+    p.add_argument("--no-pictures", action="store_true", help="write no pictures")
+    p.set_defaults(run=identify)
     args = parser.parse_args(argv)
     import bundledyn as bd
 

@@ -8,6 +8,8 @@ headless.
 - `plot_drift(trajectory)`: energy and spatial momentum minus their initial values.
 - `plot_motion(trajectory)`: shape coordinates, attitude (Euler parameters), position.
 - `plot_work_precision(series)`: error against wall time, one line per method.
+- `plot_identification(result)`: an identification's residuals before and after, the
+  information's singular values, and the estimates' errors or intervals.
 - `animate(trajectory, path)`: the bodies in 3D with the frame's axes and the trail of the
   centre of mass, as a GIF.
 """
@@ -21,6 +23,7 @@ except ImportError as error:  # pragma: no cover - depends on the environment
 
 from ._viz._animation import DrawnBody, animate, body_maps, drawn_bodies
 from ._viz._canvas import new_figure, save_figure
+from ._viz._identification import plot_identification
 from ._viz._plots import attitude_quaternions, plot_drift, plot_motion, plot_work_precision
 
 __all__ = [
@@ -31,6 +34,7 @@ __all__ = [
     "drawn_bodies",
     "new_figure",
     "plot_drift",
+    "plot_identification",
     "plot_motion",
     "plot_work_precision",
     "save_figure",

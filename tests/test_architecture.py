@@ -22,7 +22,7 @@ LAYERS = (
     ("integrators", {"_solver"}),
     ("simulate", {"_simulate", "_trajectory"}),
     ("identification and checks", {"_checks", "checks", "_identify", "identify"}),
-    ("front", {"_viz", "viz", "_scene_file", "_cli", "__main__", "__init__"}),
+    ("front", {"_viz", "viz", "_scene_file", "_identify_file", "_cli", "__main__", "__init__"}),
 )
 
 

@@ -21,7 +21,12 @@ from .._simulate import simulate
 from .._state import State
 from ._data import Inputs, Measurements
 from ._gauge import AbstractGauge
-from ._identifiability import Identifiability, analyse, theta_information
+from ._identifiability import (
+    Identifiability,
+    analyse,
+    physical_quantities,
+    theta_information,
+)
 from ._levenberg_marquardt import levenberg_marquardt
 from ._parameters import Parameters
 from ._regressor import warm_start as regressor_warm_start
@@ -48,6 +53,10 @@ class FitResult:
     - `warm_start`: $\theta$ from the equation-error warm start, or `None`.
     - `window_states`: the fitted (or measured) initial states of the windows, `(K, n_s)`.
     - `iterates`: $\theta$ at the start and after each accepted step.
+    - `initial_residuals`, `residuals`: the weighted data residuals (each measured
+      channel minus the model, in units of its noise level) at the start and at the
+      solution; at the solution they look like unit Gaussian noise when the model and the
+      stated noise levels are right.
     - `stats`: `evaluations` of the residuals with their Jacobian, `trials` of trial steps
       (residuals alone), `window_solves` (each window solved once per evaluation or
       trial; an evaluation carries the tangents too), accepted `steps`, whether
@@ -63,11 +72,22 @@ class FitResult:
     warm_start: jax.Array | None
     window_states: jax.Array
     iterates: list
+    initial_residuals: np.ndarray
+    residuals: np.ndarray
     stats: dict
 
     def estimates(self):
         """The physical parameters with standard errors (`Identifiability.estimates`)."""
         return self.identifiability.estimates
+
+    def values_of(self, scene: Scene) -> dict[str, float]:
+        """The same physical quantities as `estimates` (by name) in another scene of the
+        same structure: the truth, when the data were synthetic, or the nominal scene."""
+        other = Parameters(
+            scene, bodies=self.parameters.bodies, joint_constants=self.parameters.joint_constants
+        )
+        values = np.asarray(physical_quantities(other, other.initial()))
+        return {e.name: float(v) for e, v in zip(self.estimates(), values, strict=True)}
 
     def report(self) -> str:
         """A printable summary: the gauge, the convergence, the estimates with 95 %
@@ -210,6 +230,8 @@ def fit(
     ):
         z0 = decision(parameters.initial())  # the warm start was worse than the nominal values
     z0 = _first_order(evaluate, z0, optimizer, optimizer_steps)
+    data_rows = -gauge.residuals(parameters, theta0).shape[0] or None
+    initial_residuals = np.asarray(_residuals(problem, gauge, window_states, z0)[0][:data_rows])
     iterates = [z0[: parameters.size]]
 
     def record(step, z, cost, damping):
@@ -250,9 +272,9 @@ def fit(
     information = theta_information(
         solution.jacobian, solution.constraint_jacobian, parameters.size
     )
-    data_rows = solution.residuals.shape[0] - gauge.residuals(parameters, theta).shape[0]
-    chi2 = float(jnp.sum(solution.residuals[:data_rows] ** 2))
-    dof = data_rows - (solution.z.shape[0] - solution.defects.shape[0])
+    residuals = np.asarray(solution.residuals[:data_rows])
+    chi2 = float(np.sum(residuals**2))
+    dof = residuals.shape[0] - (solution.z.shape[0] - solution.defects.shape[0])
     return FitResult(
         scene=parameters.to_scene(theta),
         theta=theta,
@@ -263,6 +285,8 @@ def fit(
         warm_start=start,
         window_states=fitted_states if windows.fit_states else window_states,
         iterates=iterates,
+        initial_residuals=initial_residuals,
+        residuals=residuals,
         stats=dict(
             evaluations=evaluations,
             trials=trials,
