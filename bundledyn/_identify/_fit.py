@@ -56,7 +56,8 @@ class FitResult:
     - `initial_residuals`, `residuals`: the weighted data residuals (each measured
       channel minus the model, in units of its noise level) at the start and at the
       solution; at the solution they look like unit Gaussian noise when the model and the
-      stated noise levels are right.
+      stated noise levels are right. A sample two windows share is counted once: its rows
+      in the earlier window are zero.
     - `stats`: `evaluations` of the residuals with their Jacobian, `trials` of trial steps
       (residuals alone), `window_solves` (each window solved once per evaluation or
       trial; an evaluation carries the tangents too), accepted `steps`, whether
@@ -274,7 +275,8 @@ def fit(
     )
     residuals = np.asarray(solution.residuals[:data_rows])
     chi2 = float(np.sum(residuals**2))
-    dof = residuals.shape[0] - (solution.z.shape[0] - solution.defects.shape[0])
+    # A sample two windows share is measured once: its row in the earlier window is zero.
+    dof = np.count_nonzero(residuals) - (solution.z.shape[0] - solution.defects.shape[0])
     return FitResult(
         scene=parameters.to_scene(theta),
         theta=theta,

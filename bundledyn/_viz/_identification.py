@@ -10,8 +10,10 @@ from ._canvas import new_figure, save_figure
 def _residual_panel(ax, result: FitResult):
     """Histograms of the weighted residuals at the start and at the solution, with the
     unit Gaussian they follow when the model and the noise levels are right."""
-    after = np.asarray(result.residuals)
-    before = np.asarray(result.initial_residuals)
+    # Rows of samples counted in another window are zero: left out.
+    counted = np.asarray(result.residuals) != 0
+    after = np.asarray(result.residuals)[counted]
+    before = np.asarray(result.initial_residuals)[counted]
     reach = max(4.0, float(np.quantile(np.abs(after), 0.999)))
     bins = np.linspace(-reach, reach, 61)
     shown = np.mean(np.abs(before) <= reach)
@@ -46,6 +48,11 @@ def _error_panel(ax, result: FitResult, truth: dict[str, float] | None):
     """Each determined estimate's error in standard errors (with the truth), or its 95 %
     interval relative to its value (without)."""
     kept = [e for e in result.estimates() if e.determined]
+    if not kept:
+        ax.text(0.5, 0.5, "no quantity is determined alone:\nsee the report's undetermined\n"
+                "directions", ha="center", va="center", transform=ax.transAxes)  # fmt: skip
+        ax.set_axis_off()
+        return
     names = [e.name for e in kept]
     y = np.arange(len(kept))
     if truth is not None:
