@@ -29,6 +29,16 @@ def test_committed_with_outputs(name):
 
 
 @pytest.mark.parametrize("name", NOTEBOOKS)
+def test_figures_are_stored_as_images(name):
+    """Every figure is committed as a picture, not as its `<Figure ...>` text."""
+    book = nbformat.read(FOLDER / name, as_version=4)
+    outputs = [o for c in book.cells if c.cell_type == "code" for o in c.outputs]
+    data = [o.get("data", {}) for o in outputs]
+    as_text = [d for d in data if str(d.get("text/plain", "")).startswith("<Figure")]
+    assert all("image/png" in d for d in as_text), "figures kept as text: add %matplotlib inline"
+
+
+@pytest.mark.parametrize("name", NOTEBOOKS)
 def test_runs_top_to_bottom(name):
     book = nbformat.read(FOLDER / name, as_version=4)
     # The kernel imports this checkout's bundledyn, as the tests do.
