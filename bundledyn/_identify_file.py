@@ -10,6 +10,7 @@ import dataclasses
 import json
 import pathlib
 import tomllib
+from typing import cast
 
 import equinox as eqx
 import numpy as np
@@ -21,6 +22,8 @@ from ._identify._parameters import Parameters
 from ._identify._shooting import Windows
 from ._scene import PrescribedBase, Scene
 from ._scene_file import SceneFile, SceneFileError, _Table, load_system
+from ._systems._base import AbstractInertialSystem
+from ._systems._multibody import AbstractMultibody
 from ._systems._pseudo_inertia import inertial_from_pseudo_inertia
 
 _NOISE_FIELDS = tuple(f.name for f in dataclasses.fields(Noise))
@@ -205,7 +208,9 @@ def estimates_json(result: FitResult, truth: dict[str, float] | None = None) -> 
         "stats": {
             k: (v if isinstance(v, bool | int | float) else str(v)) for k, v in result.stats.items()
         },  # fmt: skip
-        "pseudo_inertias": np.asarray(result.scene.system.pseudo_inertias()).tolist(),
+        "pseudo_inertias": np.asarray(
+            cast(AbstractInertialSystem, result.scene.system).pseudo_inertias()
+        ).tolist(),
     }
 
 
@@ -214,8 +219,9 @@ def write_mjcf(result: FitResult, model_path: pathlib.Path, path: pathlib.Path) 
     principal moments and axes), written to `path` by MuJoCo (6 significant digits)."""
     import mujoco
 
-    spec = mujoco.MjSpec.from_file(str(model_path))
-    system = result.scene.system
+    # MuJoCo's compiled bindings carry no type information: pyright cannot see them.
+    spec = mujoco.MjSpec.from_file(str(model_path))  # pyright: ignore[reportAttributeAccessIssue]
+    system = cast(AbstractMultibody, result.scene.system)  # an MJCF model is a tree
     masses, centres, inertias = (
         np.asarray(x) for x in inertial_from_pseudo_inertia(system.pseudo_inertias())
     )
@@ -223,7 +229,7 @@ def write_mjcf(result: FitResult, model_path: pathlib.Path, path: pathlib.Path) 
         moments, axes = np.linalg.eigh(inertias[b])
         axes[:, 2] *= np.sign(np.linalg.det(axes))
         quat = np.zeros(4)
-        mujoco.mju_mat2Quat(quat, axes.reshape(-1))
+        mujoco.mju_mat2Quat(quat, axes.reshape(-1))  # pyright: ignore[reportAttributeAccessIssue]
         body = spec.body(system.names[b])
         body.explicitinertial = True
         body.mass, body.ipos, body.iquat, body.inertia = masses[b], centres[b], quat, moments

@@ -118,7 +118,7 @@ class Measurements(eqx.Module):
         if unknown:
             raise ValueError(f"unknown channels {sorted(unknown)}; use pose, q, xi or qdot.")
         kept = {name: jnp.asarray(fields[name]) for name in channels}
-        return cls(jnp.asarray(ts, dtype=float), noise=noise, **kept)
+        return cls(jnp.asarray(ts, dtype=float), noise=noise, **kept)  # pyright: ignore[reportArgumentType]  # the channels by keyword, not `bodies`
 
     @classmethod
     def from_mujoco(
@@ -148,9 +148,8 @@ class Measurements(eqx.Module):
         """Write the measurements to an `.npz` file (`load` reads it back)."""
         arrays = {name: np.asarray(getattr(self, name)) for name in self.channels}
         noise = {f"noise_{k}": np.asarray(v) for k, v in vars(self.noise).items()}
-        np.savez(
-            path, ts=np.asarray(self.ts), bodies=np.asarray(self.bodies, int), **arrays, **noise
-        )
+        arrays |= noise | {"ts": np.asarray(self.ts), "bodies": np.asarray(self.bodies, int)}
+        np.savez(path, **arrays)  # pyright: ignore[reportArgumentType]  # names, not savez's flags
 
     @classmethod
     def load(cls, path) -> "Measurements":

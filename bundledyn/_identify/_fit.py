@@ -9,6 +9,7 @@ the identifiability analysis of the solution (`analyse`).
 
 import dataclasses
 import time
+from typing import cast
 
 import diffrax
 import equinox as eqx
@@ -155,7 +156,9 @@ def _nominal_trajectory(scene: Scene, measurements: Measurements, initial_state:
             "parts of the windows."
         )
     ts = measurements.ts
-    traj = simulate(scene, initial_state, ts[-1], t0=ts[0], saveat=diffrax.SaveAt(ts=ts))
+    traj = simulate(
+        scene, initial_state, float(ts[-1]), t0=float(ts[0]), saveat=diffrax.SaveAt(ts=ts)
+    )
     return jax.vmap(State)(traj.g, traj.q, traj.xi, traj.qdot)
 
 
@@ -232,7 +235,8 @@ def fit(
         z0 = decision(parameters.initial())  # the warm start was worse than the nominal values
     z0 = _first_order(evaluate, z0, optimizer, optimizer_steps)
     data_rows = -gauge.residuals(parameters, theta0).shape[0] or None
-    initial_residuals = np.asarray(_residuals(problem, gauge, window_states, z0)[0][:data_rows])
+    r0, _ = _residuals(problem, gauge, window_states, z0)
+    initial_residuals = np.asarray(r0)[:data_rows]
     iterates = [z0[: parameters.size]]
 
     def record(step, z, cost, damping):
@@ -276,7 +280,7 @@ def fit(
     residuals = np.asarray(solution.residuals[:data_rows])
     chi2 = float(np.sum(residuals**2))
     # A sample two windows share is measured once: its row in the earlier window is zero.
-    dof = np.count_nonzero(residuals) - (solution.z.shape[0] - solution.defects.shape[0])
+    dof = int(np.count_nonzero(residuals)) - (solution.z.shape[0] - solution.defects.shape[0])
     return FitResult(
         scene=parameters.to_scene(theta),
         theta=theta,
@@ -301,7 +305,9 @@ def fit(
 
 
 @eqx.filter_jit
-def _residuals(problem: ShootingProblem, gauge: AbstractGauge, window_states, z):
+def _residuals(
+    problem: ShootingProblem, gauge: AbstractGauge, window_states, z
+) -> tuple[jax.Array, jax.Array]:
     """`(r, c)` of the problem with the gauge's pseudo-measurements appended to `r`."""
     r, c = problem.residuals(z, window_states)
     return jnp.concatenate(
@@ -310,7 +316,9 @@ def _residuals(problem: ShootingProblem, gauge: AbstractGauge, window_states, z)
 
 
 @eqx.filter_jit
-def _evaluate(problem: ShootingProblem, gauge: AbstractGauge, window_states, z):
+def _evaluate(
+    problem: ShootingProblem, gauge: AbstractGauge, window_states, z
+) -> tuple[jax.Array, jax.Array, jax.Array, jax.Array]:
     """`(r, J, c, C)` of the problem with the gauge's pseudo-measurements appended to `r`."""
     r, J, c, C = problem.residuals_and_jacobian(z, window_states)
     P = problem.parameters.size
@@ -329,7 +337,7 @@ def _merit(evaluation) -> float:
     return merit if np.isfinite(merit) else np.inf
 
 
-def _first_order(evaluate, z0, optimizer, steps: int):
+def _first_order(evaluate, z0, optimizer, steps: int) -> jax.Array:
     """`steps` steps of an optax optimizer on the merit, with the exact gradient."""
     if optimizer is None or steps == 0:
         return z0
@@ -341,5 +349,5 @@ def _first_order(evaluate, z0, optimizer, steps: int):
         r, J, c, C = evaluate(z)
         gradient = J.T @ r + C.T @ c
         updates, state = optimizer.update(gradient, state, z)
-        z = optax.apply_updates(z, updates)
+        z = cast(jax.Array, optax.apply_updates(z, updates))
     return z

@@ -11,6 +11,7 @@ wrenches), whose work the motion shows.
 import abc
 
 import equinox as eqx
+import jax
 import jax.numpy as jnp
 
 from ._data import Inputs
@@ -30,11 +31,11 @@ class AbstractGauge(eqx.Module):
         """Raise `ValueError` if this gauge cannot fix the scale of this problem."""
 
     @abc.abstractmethod
-    def mass_rows(self, parameters: Parameters, masses):
+    def mass_rows(self, parameters: Parameters, masses) -> jax.Array:
         """The gauge's pseudo-measurement residuals given the free bodies' masses `(k,)`
         (possibly none)."""
 
-    def residuals(self, parameters: Parameters, theta):
+    def residuals(self, parameters: Parameters, theta) -> jax.Array:
         r"""The gauge's pseudo-measurement residuals at $\theta$ (possibly none)."""
         return self.mass_rows(parameters, parameters.pseudo_inertias(theta)[:, 3, 3])
 
@@ -71,7 +72,7 @@ class KnownMass(AbstractGauge):
             raise ValueError(f"body {self.body!r} is not free: its mass is already known.")
 
     def mass_rows(self, parameters, masses):
-        P = parameters.scene.system.pseudo_inertias()
+        P = parameters.system.pseudo_inertias()
         masses = P[:, 3, 3].at[jnp.array(parameters.bodies)].set(masses)
         index = self._index(parameters)
         mass = jnp.sum(masses) if index is None else masses[index]
@@ -87,7 +88,7 @@ class KnownBodies(AbstractGauge):
     wheel of known make, a calibrated base. Leave them out of `Parameters.bodies`."""
 
     def check(self, parameters, inputs):
-        if len(parameters.bodies) == parameters.scene.system.pseudo_inertias().shape[0]:
+        if len(parameters.bodies) == parameters.system.pseudo_inertias().shape[0]:
             raise ValueError(
                 "`KnownBodies` gauge: every body is free in `Parameters`; leave the known "
                 "bodies out of `Parameters(bodies=...)`."
@@ -97,7 +98,7 @@ class KnownBodies(AbstractGauge):
         return jnp.zeros((0,), masses.dtype)
 
     def describe(self, parameters):
-        n = parameters.scene.system.pseudo_inertias().shape[0]
+        n = parameters.system.pseudo_inertias().shape[0]
         known = [b for b in range(n) if b not in parameters.bodies]
         return f"bodies {known} have known inertial parameters"
 

@@ -6,6 +6,8 @@ free joint constant (the stiffness of the scene's `ShapeSpring`, the damping of 
 `ShapeDamper`) contributes its logarithm, so that it stays positive.
 """
 
+from typing import cast
+
 import equinox as eqx
 import jax.numpy as jnp
 import numpy as np
@@ -85,13 +87,18 @@ class Parameters(eqx.Module):
         self.joint_constants = tuple(joint_constants)
 
     @property
+    def system(self) -> AbstractInertialSystem:
+        """The nominal system (an `AbstractInertialSystem`, checked at construction)."""
+        return cast(AbstractInertialSystem, self.scene.system)
+
+    @property
     def body_names(self) -> tuple[str, ...]:
         """The names of all the system's bodies (free or not)."""
         return _body_names(self.scene.system)
 
     @property
     def _coordinates(self) -> int:
-        return 7 if self.scene.system.fixed_centres else 10
+        return 7 if self.system.fixed_centres else 10
 
     def _constant(self, name):
         kind, field = _JOINT_CONSTANTS[name]
@@ -99,7 +106,7 @@ class Parameters(eqx.Module):
 
     def initial(self):
         r"""$\theta$ of the nominal scene, shape `(size,)`."""
-        P = self.scene.system.pseudo_inertias()[np.array(self.bodies, int)]
+        P = self.system.pseudo_inertias()[np.array(self.bodies, int)]
         theta = log_cholesky_from_pseudo_inertia(P)[:, : self._coordinates].reshape(-1)
         logs = [jnp.log(jnp.atleast_1d(self._constant(n))) for n in self.joint_constants]
         return jnp.concatenate([theta, *logs])
@@ -154,7 +161,7 @@ class Parameters(eqx.Module):
 
     def to_scene(self, theta) -> Scene:
         r"""The scene at $\theta$: the nominal scene with the free parameters replaced."""
-        system = self.scene.system
+        system = self.system
         P = system.pseudo_inertias().at[np.array(self.bodies, int)].set(self.pseudo_inertias(theta))
         scene = eqx.tree_at(lambda s: s.system, self.scene, system.with_pseudo_inertias(P))
         for name, value in self.joint_constant_values(theta).items():

@@ -106,13 +106,11 @@ class _Linear(eqx.Module):
         params = self.parameters
         k = len(params.bodies)
         P = (
-            params.scene.system.pseudo_inertias()
+            params.system.pseudo_inertias()
             .at[np.array(params.bodies, int)]
             .set(_matrix(pi[: 10 * k].reshape(k, 10)))
         )
-        scene = eqx.tree_at(
-            lambda s: s.system, params.scene, params.scene.system.with_pseudo_inertias(P)
-        )
+        scene = eqx.tree_at(lambda s: s.system, params.scene, params.system.with_pseudo_inertias(P))
         offset = 10 * k
         theta = params.initial()
         for name, nominal in params.joint_constant_values(theta).items():
@@ -178,10 +176,8 @@ def warm_start(
     accelerations = smoothed_derivative(measurements.ts, states.qdot)
     solution = _solve(linear, gauge, pi0, states, measurements.ts, accelerations)
     k = len(parameters.bodies)
-    P = _project(_matrix(solution[: 10 * k].reshape(k, 10)), parameters.scene.system.fixed_centres)
-    theta = log_cholesky_from_pseudo_inertia(P)[
-        :, : 7 if parameters.scene.system.fixed_centres else 10
-    ]
+    P = _project(_matrix(solution[: 10 * k].reshape(k, 10)), parameters.system.fixed_centres)
+    theta = log_cholesky_from_pseudo_inertia(P)[:, : 7 if parameters.system.fixed_centres else 10]
     constants = jnp.log(jnp.maximum(solution[10 * k :], _FLOOR * jnp.abs(pi0[10 * k :])))
     return jnp.concatenate([theta.reshape(-1), constants])
 
@@ -221,6 +217,7 @@ def _driven_equations(linear: _Linear, gauge: AbstractGauge, pi0, states, ts, ac
     the effects' (inputs included), linear in $\pi$; $\ddot q$ by central differences of the
     measured $\dot q$."""
     base = linear.parameters.scene.base
+    assert isinstance(base, PrescribedBase)  # the torque regressor is for a prescribed base
     _, _, xi_dot = jax.vmap(base.at)(ts)
     qddot = accelerations
 
@@ -238,7 +235,7 @@ def _driven_equations(linear: _Linear, gauge: AbstractGauge, pi0, states, ts, ac
     return weighted, pi0
 
 
-def _gauge_rows(parameters: Parameters, gauge: AbstractGauge, pi):
+def _gauge_rows(parameters: Parameters, gauge: AbstractGauge, pi) -> jax.Array:
     k = len(parameters.bodies)
     return gauge.mass_rows(parameters, pi[: 10 * k].reshape(k, 10)[:, 9])  # P_44, linear in π
 

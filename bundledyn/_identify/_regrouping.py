@@ -97,7 +97,7 @@ def named_directions(parameters: Parameters, theta) -> dict:
     r"""Directions of $\theta$ with a physical name, each a `(size,)` array: the joints'
     regroupings (module docstring) between free bodies, the overall mass scale and each
     free body's rotational inertia scale."""
-    system = parameters.scene.system
+    system = parameters.system
     free = list(parameters.bodies)
     n = 7 if system.fixed_centres else 10
     P = parameters.pseudo_inertias(theta)
@@ -139,6 +139,8 @@ def named_directions(parameters: Parameters, theta) -> dict:
         if parent not in free:
             continue
         kind, geometry = _joint_geometry(tree, b)
+        if kind is None:
+            continue
         T = np.asarray(tree.placement[b])
         for k, delta_child in enumerate(_transfers(kind, geometry)):
             delta = np.zeros((len(free), 4, 4))

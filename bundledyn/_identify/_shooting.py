@@ -249,6 +249,7 @@ class ShootingProblem(eqx.Module):
             max_steps=times.shape[0] - 1,
         )
         sub = self.windows.substeps
+        assert solution.ts is not None and solution.ys is not None  # saved at every step
         samples = jax.tree.map(lambda x: x[::sub], solution.ys)
         states = jax.vmap(term.decode)(solution.ts[::sub], samples)
         residuals = self._predicted_residuals(scene.system, states, k_index, measured)
