@@ -199,10 +199,9 @@ def mujoco_initial(model, scene, state):
     import mujoco
     import numpy as np
 
-    from bundledyn._systems._mujoco import mujoco_from_state
+    import bundledyn as bd
 
-    s = state
-    qpos, qvel = mujoco_from_state(scene.system, s.g, s.q, s.xi, s.qdot, qpos0=model.qpos0)
+    qpos, qvel = bd.state_to_mujoco(scene.system, state, qpos0=model.qpos0)
     data = mujoco.MjData(model)
     data.qpos[:], data.qvel[:] = np.asarray(qpos), np.asarray(qvel)
     mujoco.mj_forward(model, data)
@@ -250,7 +249,7 @@ def mujoco_final_state(n, dt, t1, scene, state):
     variables, sampler of the rollout)`."""
     from mujoco import rollout
 
-    from bundledyn._systems._mujoco import state_from_mujoco
+    from bundledyn import state_from_mujoco
 
     model = mujoco_model(n, dt)
     data, initial = mujoco_initial(model, scene, state)
@@ -350,7 +349,7 @@ def mjx_calibration(t1, scene, states, refs, target, divisions=(1, 2, 5, 10, 20,
     step, and the longest step whose error is at most `target`; None without `mujoco.mjx`."""
     import numpy as np
 
-    from bundledyn._systems._mujoco import state_from_mujoco
+    from bundledyn import state_from_mujoco
 
     model = mujoco_model(5, MUJOCO_DT)
     run = mjx_rollout(model)
@@ -394,11 +393,12 @@ def loop_sampler(fn, y, calls):
 
 def field_sampler(n):
     """A sampler of seconds per vector-field evaluation of the n-body chain (`loop_sampler`)."""
-    from bundledyn._simulate import initial_condition
+    import bundledyn as bd
 
     scene = chain_scene(n)
-    y = initial_condition(scene, initial_state(scene), 0.0)
-    return loop_sampler(lambda i, y: scene.vector_field(1e-6 * i, y, None), y, LOOP_EVALS)
+    term = bd.SceneTerm(scene)
+    y = term.encode(0.0, initial_state(scene))
+    return loop_sampler(lambda i, y: term.vf(1e-6 * i, y, None), y, LOOP_EVALS)
 
 
 def field_cost(n, repeats):
@@ -851,16 +851,14 @@ def gradient_units(scene, state, t1, rtol):
     rejected)."""
 
     import bundledyn as bd
-    from bundledyn._scene import SceneTerm
-    from bundledyn._simulate import initial_condition
 
-    y = initial_condition(scene, state, 0.0)
     options = simulate_options("RKMK87", "adaptive", rtol)
     steps = int(bd.simulate(scene, state, t1, **options).stats["num_steps"])
-    term, solver = SceneTerm(scene), bd.RKMK87(dense_output=False)
+    term, solver = bd.SceneTerm(scene), bd.RKMK87(dense_output=False)
+    y = term.encode(0.0, state)
 
     def field(i, y):  # the twist as a 4×4 matrix, so that the loop can feed it back as y
-        xi, xdot = scene.body_field(0.0, y, None)
+        xi, xdot = term.body_vf(0.0, y, None)
         return bd.lie.se3_hat(xi), xdot
 
     def step(i, y):
