@@ -83,7 +83,7 @@ def simulate(
     state0: State,
     t1,
     *,
-    t0=0.0,
+    t0: float | jax.Array = 0.0,
     solver=None,
     rtol: float = 1e-8,
     atol: float = 1e-8,

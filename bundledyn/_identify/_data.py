@@ -118,7 +118,8 @@ class Measurements(eqx.Module):
         if unknown:
             raise ValueError(f"unknown channels {sorted(unknown)}; use pose, q, xi or qdot.")
         kept = {name: jnp.asarray(fields[name]) for name in channels}
-        return cls(jnp.asarray(ts, dtype=float), noise=noise, **kept)  # pyright: ignore[reportArgumentType]  # the channels by keyword, not `bodies`
+        # `bodies` given (its default) so that the unpacked channels cannot be taken for it.
+        return cls(jnp.asarray(ts, dtype=float), bodies=(), noise=noise, **kept)
 
     @classmethod
     def from_mujoco(
@@ -148,8 +149,9 @@ class Measurements(eqx.Module):
         """Write the measurements to an `.npz` file (`load` reads it back)."""
         arrays = {name: np.asarray(getattr(self, name)) for name in self.channels}
         noise = {f"noise_{k}": np.asarray(v) for k, v in vars(self.noise).items()}
-        arrays |= noise | {"ts": np.asarray(self.ts), "bodies": np.asarray(self.bodies, int)}
-        np.savez(path, **arrays)  # pyright: ignore[reportArgumentType]  # names, not savez's flags
+        fields = {"ts": np.asarray(self.ts), "bodies": np.asarray(self.bodies, int)}
+        # numpy's stub lets unpacked keys reach `allow_pickle`; these are only array names.
+        np.savez(path, **fields, **arrays, **noise)  # pyright: ignore[reportArgumentType]
 
     @classmethod
     def load(cls, path) -> "Measurements":

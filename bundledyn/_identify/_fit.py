@@ -156,9 +156,7 @@ def _nominal_trajectory(scene: Scene, measurements: Measurements, initial_state:
             "parts of the windows."
         )
     ts = measurements.ts
-    traj = simulate(
-        scene, initial_state, float(ts[-1]), t0=float(ts[0]), saveat=diffrax.SaveAt(ts=ts)
-    )
+    traj = simulate(scene, initial_state, ts[-1], t0=ts[0], saveat=diffrax.SaveAt(ts=ts))
     return jax.vmap(State)(traj.g, traj.q, traj.xi, traj.qdot)
 
 
