@@ -26,18 +26,20 @@ def test_speed_report_redraws_from_its_json(tmp_path):
     markdown from the JSON (the CPU run's and the GPU batches'), and every target row states
     whether it was met."""
     from benchmarks import speed
+    from benchmarks._output import RESULTS
+    from benchmarks.speed.targets import targets
 
-    names = [path.name for path in speed.RESULTS.glob("speed*.json")]
+    names = [path.name for path in RESULTS.glob("speed*.json")]
     assert {"speed.json", "speed_gpu.json"} <= set(names)
     for name in names:
-        (tmp_path / name).write_bytes((speed.RESULTS / name).read_bytes())
+        (tmp_path / name).write_bytes((RESULTS / name).read_bytes())
     speed.main(["--report-only", "--out", str(tmp_path)])
     for name in names:
         md = name.replace(".json", ".md")
-        assert (tmp_path / md).read_text() == (speed.RESULTS / md).read_text()
+        assert (tmp_path / md).read_text() == (RESULTS / md).read_text()
     text = (tmp_path / "speed.md").read_text()
     report = json.loads((tmp_path / "speed.json").read_text())
-    rows = speed.targets(report)
+    rows = targets(report)
     assert len(rows) >= 10 and all(isinstance(met, bool) for *_, met in rows)
     assert all(f"| {what} |" in text for what, *_ in rows)
 
@@ -46,14 +48,14 @@ def test_speed_times_both_sides_in_alternation():
     """`interleaved` calls every sampler once per round, in reverse order every other round,
     so the two sides of a ratio share the machine's slow phases; a sampler's own
     measurement is kept as it returns it."""
-    from benchmarks import speed
+    from benchmarks._timing import interleaved
 
     calls = []
 
     def sampler(name, seconds=None):
         return lambda: calls.append(name) or seconds
 
-    timings = speed.interleaved({"a": sampler("a", 2.0), "b": sampler("b")}, repeats=3)
+    timings = interleaved({"a": sampler("a", 2.0), "b": sampler("b")}, repeats=3)
     assert calls == ["a", "b", "a", "b", "b", "a", "a", "b"]  # warm-up, then rounds
     (first_a, runs_a), (_, runs_b) = timings["a"], timings["b"]
     assert first_a == 2.0 and runs_a == {"median": 2.0, "min": 2.0, "max": 2.0}
@@ -63,10 +65,11 @@ def test_speed_times_both_sides_in_alternation():
 def test_speed_gradient_profile_units_run():
     """Part 5c's units (the body field, an RKMK87 step and their VJPs) run in their compiled
     loops: each returns a time per call."""
-    from benchmarks import speed
+    from benchmarks._models import chain_scene, initial_state
+    from benchmarks.speed.gradient import gradient_units
 
-    scene = speed.chain_scene(2)
-    units, profile = speed.gradient_units(scene, speed.initial_state(scene), 0.5, 1e-4)
+    scene = chain_scene(2)
+    units, profile = gradient_units(scene, initial_state(scene), 0.5, 1e-4)
     assert profile["steps"] >= 1 and profile["stages"] == 13
     assert all(0.0 < sample() < 1.0 for sample in units.values())
 
@@ -78,16 +81,16 @@ def test_speed_gradient_baselines_solve_their_odes():
     import jax
     import jax.numpy as jnp
 
-    from benchmarks import speed
+    from benchmarks.speed.gradient import baseline_loss, skew_network_ode
 
-    field, y0 = speed.skew_network_ode(1)
-    loss = speed.baseline_loss(field, 2.0, 1e-10)
+    field, y0 = skew_network_ode(1)
+    loss = baseline_loss(field, 2.0, 1e-10)
     assert y0.shape == (30,)
     assert jnp.allclose(loss(y0), jnp.sum(y0**2), rtol=1e-8)
     assert jnp.allclose(jax.grad(loss)(y0), 2 * y0, rtol=1e-7, atol=1e-8)
 
-    field, y0 = speed.skew_network_ode(3)
-    loss = speed.baseline_loss(field, 1.0, 1e-11)
+    field, y0 = skew_network_ode(3)
+    loss = baseline_loss(field, 1.0, 1e-11)
     e = jnp.zeros(30).at[4].set(1e-5)
     fd = (loss(y0 + e) - loss(y0 - e)) / 2e-5
     assert jnp.allclose(jax.grad(loss)(y0)[4], fd, rtol=1e-8)

@@ -1,0 +1,32 @@
+"""MuJoCo beside bundledyn: one state in both simulators' variables, through the public
+converters `bd.state_to_mujoco` and `bd.state_from_mujoco`."""
+
+import bundledyn as bd
+
+
+def physics_state(model, system, state: bd.State):
+    """`(data, full physics state)`: MuJoCo's `MjData` and `mjSTATE_FULLPHYSICS` vector
+    (what `mujoco.rollout` starts from) for bundledyn's `state` of `system`, the same
+    model as `model`."""
+    import mujoco
+    import numpy as np
+
+    qpos, qvel = bd.state_to_mujoco(system, state, qpos0=model.qpos0)
+    data = mujoco.MjData(model)
+    data.qpos[:], data.qvel[:] = np.asarray(qpos), np.asarray(qvel)
+    mujoco.mj_forward(model, data)
+    spec = mujoco.mjtState.mjSTATE_FULLPHYSICS
+    initial = np.empty(mujoco.mj_stateSize(model, spec))
+    mujoco.mj_getState(model, data, initial, spec)
+    return data, initial
+
+
+def qpos_qvel(model, physics):
+    """The `(qpos, qvel)` parts of full physics states (the last axis; time comes first)."""
+    return physics[..., 1 : 1 + model.nq], physics[..., 1 + model.nq : 1 + model.nq + model.nv]
+
+
+def final_state(model, system, states) -> bd.State:
+    """bundledyn's state at the end of the first rollout of `mujoco.rollout`'s `states`."""
+    qpos, qvel = qpos_qvel(model, states[0, -1])
+    return bd.state_from_mujoco(system, qpos, qvel, qpos0=model.qpos0)

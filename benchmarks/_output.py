@@ -1,0 +1,39 @@
+"""Where a benchmark writes its results: `benchmarks/results/` for a full run, never for a
+quick one (a temporary folder unless `--out` says where)."""
+
+import json
+import pathlib
+import tempfile
+
+ROOT = pathlib.Path(__file__).resolve().parents[1]
+RESULTS = ROOT / "benchmarks" / "results"
+
+
+def stem(name, quick):
+    """The results files' name without suffix: `name`, or `name_quick` for a quick run."""
+    return f"{name}_quick" if quick else name
+
+
+def folder(out, quick, name, report_only=False):
+    """The folder a run reads and writes: `out` where given, else `RESULTS` for a full run
+    and a new temporary folder for a quick one. A quick run never writes into `RESULTS`
+    (the committed results), and redrawing a quick run's report needs `out`."""
+    if out is None and not quick:
+        return RESULTS
+    if out is None and report_only:
+        raise SystemExit("--report-only --quick redraws a quick run's files: pass its --out")
+    if out is None:
+        out = pathlib.Path(tempfile.mkdtemp(prefix=f"{name}_quick_"))
+    elif quick and out.resolve() == RESULTS.resolve():
+        raise SystemExit(f"--quick never writes into {RESULTS}: pass another --out")
+    if quick:
+        print(f"quick run: results go to {out}", flush=True)
+    return out
+
+
+def write(out, name, report, text):
+    """`name.json` (the report) and `name.md` (its markdown `text`) in `out`."""
+    out.mkdir(parents=True, exist_ok=True)
+    (out / f"{name}.json").write_text(json.dumps(report, indent=1, default=float) + "\n")
+    (out / f"{name}.md").write_text(text)
+    print(f"wrote {out / name}.{{json,md}}", flush=True)

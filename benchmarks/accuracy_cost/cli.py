@@ -1,0 +1,130 @@
+"""`python -m benchmarks.accuracy_cost`: the sweep, `--report-only` and `--extras-only`
+(see the package's docstring)."""
+
+import argparse
+import json
+import pathlib
+
+from benchmarks import _output
+from benchmarks._provenance import environment, provenance
+from benchmarks.accuracy_cost.problems import PROBLEMS
+
+DESCRIPTION = "What accuracy costs in time: work–precision of every solver, with peers."
+NAME = "accuracy_cost"
+PACKAGES = (
+    "bundledyn",
+    "jax",
+    "jaxlib",
+    "diffrax",
+    "equinox",
+    "numpy",
+    "scipy",
+    "mujoco",
+    "matplotlib",
+)
+MUJOCO_STEPS = (100, 200, 400, 800, 1600, 3200, 6400, 12800)
+SCIPY_RTOLS = (1e-4, 1e-6, 1e-8, 1e-10)
+
+
+def measure_problem(name, quick, repeats):
+    """One problem's reference, every method's sweep and, on the chain, the peers."""
+    from benchmarks.accuracy_cost.peers import mujoco_peer, scipy_peer
+    from benchmarks.accuracy_cost.sweep import METHODS, methods_for, reference, sweep
+
+    problem = PROBLEMS[name]()
+    print(problem.title, flush=True)
+    ref, agreement = reference(problem)
+    print(f"  reference agreement (RKMK54 vs Dopri8): {agreement:.1e}", flush=True)
+    series = [sweep(problem, METHODS[m], ref, quick, repeats) for m in methods_for(problem, quick)]
+    if name == "chain" and not quick:
+        series += mujoco_peer(problem, ref, repeats, MUJOCO_STEPS)
+        series += scipy_peer(problem, ref, repeats, SCIPY_RTOLS)
+    return {
+        "name": name,
+        "title": problem.title,
+        "reference_agreement": agreement,
+        "series": series,
+    }
+
+
+def measure_extras(report, repeats):
+    """Throughput, gradient cost and compile time against bodies, on the chain."""
+    from benchmarks.accuracy_cost.extras import compile_times, gradient_cost, throughput
+
+    chain = PROBLEMS["chain"]()
+    print("throughput, gradients, compile times", flush=True)
+    report["extras_environment"] = environment(PACKAGES)
+    report["throughput"] = throughput(chain, (1, 64, 1024), repeats)
+    report["gradients"] = gradient_cost(chain, repeats)
+    report["compile"] = compile_times((1, 2, 5, 10, 20))
+
+
+def write_report(report, out):
+    from benchmarks.accuracy_cost.report import markdown
+
+    _output.write(out, _output.stem(NAME, report["quick"]), report, markdown(report))
+
+
+def redraw(out, quick):
+    """Diagrams and markdown again from a results JSON, without measuring anything."""
+    from benchmarks.accuracy_cost.report import plot
+
+    report = json.loads((out / f"{_output.stem(NAME, quick)}.json").read_text())
+    for result in report["problems"]:
+        result["figure"] = plot(result, out / f"{NAME}_{result['name']}.png")
+    write_report(report, out)
+    return report
+
+
+def main(argv=None):
+    parser = argparse.ArgumentParser(description=DESCRIPTION)
+    parser.add_argument(
+        "--quick",
+        action="store_true",
+        help="one scene, three points per method; writes to a temporary folder (or --out), "
+        "never to benchmarks/results",
+    )
+    parser.add_argument(
+        "--out", type=pathlib.Path, help="results folder (default benchmarks/results)"
+    )
+    parser.add_argument("--repeats", type=int, default=5)
+    parser.add_argument("--problems", nargs="*", help="subset of " + ", ".join(PROBLEMS))
+    parser.add_argument(
+        "--report-only", action="store_true", help="rewrite the markdown and diagrams from the JSON"
+    )
+    parser.add_argument(
+        "--extras-only",
+        action="store_true",
+        help="measure throughput, gradient cost and compile times into the existing JSON",
+    )
+    args = parser.parse_args(argv)
+    import bundledyn as bd
+    from benchmarks.accuracy_cost.report import plot
+
+    bd.enable_x64()
+    out = _output.folder(args.out, args.quick, NAME, args.report_only)
+    if args.report_only:
+        return redraw(out, args.quick)
+    if args.extras_only:
+        report = json.loads((out / f"{NAME}.json").read_text())
+        report["provenance"] = provenance()
+        measure_extras(report, args.repeats)
+        write_report(report, out)
+        return report
+    names = args.problems or (["dzhanibekov"] if args.quick else list(PROBLEMS))
+    out.mkdir(parents=True, exist_ok=True)
+    report = {
+        "provenance": provenance(),
+        "environment": environment(PACKAGES),
+        "quick": args.quick,
+        "problems": [],
+    }
+    for name in names:
+        result = measure_problem(name, args.quick, args.repeats)
+        result["figure"] = plot(result, out / f"{NAME}_{name}.png")
+        report["problems"].append(result)
+        write_report(report, out)  # after every scene: a long run keeps what it measured
+    if not args.quick and args.problems is None:
+        measure_extras(report, args.repeats)
+        write_report(report, out)
+    return report
