@@ -13,10 +13,13 @@ import diffrax
 import jax
 import jax.numpy as jnp
 import numpy as np
+import pytest
 from systems import chain
 
 import bundledyn as bd
 from bundledyn import identify
+
+pytestmark = pytest.mark.usefixtures("optimized_compilation")  # fits: time goes into running
 
 T1, RATE = 2.0, 100
 STATE0 = bd.State(
@@ -182,6 +185,28 @@ def test_a_tumbling_body_shows_its_axes_and_inertia_ratios_but_not_their_scale()
         assert (
             centre.determined and abs(centre.value - truth.com["xyz".index(axis)]) < 3 * centre.std
         )
+
+
+def test_new_noise_levels_masses_and_continuation_stages_reuse_the_compiled_fit():
+    """A fit compiles its evaluation once: the continuation's stages (each a looser
+    continuity weight), a record with other noise levels and a gauge with another mass
+    are numbers, not new programs. (As Python floats in the modules they were keys of the
+    compiled functions' cache: four compilations per fit, and four more per record.)"""
+    from bundledyn._identify._fit import _evaluate, _residuals
+
+    def compiled():
+        return _evaluate._cached._cache_size(), _residuals._cached._cache_size()
+
+    xi0 = jnp.array([0.6, 0.4, 1.2, 0.1, -0.05, 0.2])
+    body = bd.RigidBody(2.0, [0.05, -0.02, 0.1], np.diag([0.3, 0.45, 0.6]))
+    before = compiled()
+    first = _tumbling(body, xi0, 0.01, t1=2.0, max_steps=1)
+    assert first.stats["evaluations"] >= 4  # one per continuation stage
+    after_first = compiled()
+    assert all(a - b <= 1 for a, b in zip(after_first, before, strict=True))
+    heavier = bd.RigidBody(3.0, [0.05, -0.02, 0.1], np.diag([0.4, 0.5, 0.7]))
+    _tumbling(heavier, xi0, 0.02, t1=2.0, max_steps=1)
+    assert compiled() == after_first
 
 
 def test_a_spin_about_a_principal_axis_leaves_the_other_moments_undetermined():

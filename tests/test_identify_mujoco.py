@@ -25,6 +25,7 @@ from bundledyn import identify
 from bundledyn._cli import main
 
 mujoco = pytest.importorskip("mujoco")
+pytestmark = pytest.mark.usefixtures("optimized_compilation")  # fits: time goes into running
 
 CHAIN = """
 <mujoco model="floating chain">
@@ -263,7 +264,7 @@ def _nominal_mjcf():
 
 
 @pytest.fixture(scope="module")
-def identified(tmp_path_factory):
+def identified(tmp_path_factory, optimized_compilation):
     """The files written, the command's exit code, and what it printed."""
     folder = tmp_path_factory.mktemp("identify")
     _, data, inputs = noisy_record()

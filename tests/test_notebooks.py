@@ -10,6 +10,9 @@ from nbclient import NotebookClient
 
 FOLDER = pathlib.Path(__file__).resolve().parents[1] / "notebooks"
 NOTEBOOKS = sorted(p.name for p in FOLDER.glob("*.ipynb"))
+# Notebooks whose time goes into running a fit, not into compiling: their kernels compile
+# with XLA's full optimisation (the suite's default skips it; see conftest.py).
+RUN_BOUND = {"04_identification.ipynb"}
 
 
 def test_readme_lists_every_notebook():
@@ -46,6 +49,8 @@ def test_runs_top_to_bottom(name):
         os.environ,
         PYTHONPATH=os.pathsep.join([str(FOLDER.parent), os.environ.get("PYTHONPATH", "")]),
     )
+    if name in RUN_BOUND:
+        env["JAX_DISABLE_MOST_OPTIMIZATIONS"] = "0"
     client = NotebookClient(
         book, timeout=300, kernel_name="python3", resources={"metadata": {"path": str(FOLDER)}}
     )

@@ -28,6 +28,20 @@ __all__ = ["Inputs", "Measurements", "Noise"]
 _CHANNELS = ("pose", "q", "xi", "qdot", "body_poses")
 
 
+Level = float | np.ndarray | jax.Array
+
+
+def level(value: Level) -> Level:
+    """A number held as an array leaf: `eqx.filter_jit` traces arrays but keys its cache on
+    Python floats, so a float field would compile anew for every new value (noise level,
+    known mass, continuity weight)."""
+    return value if isinstance(value, jax.Array) else np.asarray(value, dtype=float)
+
+
+def _level_field(default: float):
+    return eqx.field(default=default, converter=level)
+
+
 class Noise(eqx.Module):
     r"""Standard deviations of the measurement channels, in the system's units.
 
@@ -43,12 +57,12 @@ class Noise(eqx.Module):
     residuals, and the scale of the confidence intervals.
     """
 
-    rotation: float = 1.0
-    position: float = 1.0
-    q: float = 1.0
-    angular_velocity: float = 1.0
-    linear_velocity: float = 1.0
-    qdot: float = 1.0
+    rotation: Level = _level_field(1.0)
+    position: Level = _level_field(1.0)
+    q: Level = _level_field(1.0)
+    angular_velocity: Level = _level_field(1.0)
+    linear_velocity: Level = _level_field(1.0)
+    qdot: Level = _level_field(1.0)
 
 
 class Measurements(eqx.Module):

@@ -20,7 +20,7 @@ import numpy as np
 from .._scene import PrescribedBase, Scene
 from .._simulate import simulate
 from .._state import State
-from ._data import Inputs, Measurements
+from ._data import Inputs, Measurements, level
 from ._gauge import AbstractGauge
 from ._identifiability import (
     Identifiability,
@@ -256,7 +256,7 @@ def fit(
     if windows.fit_states and windows.count > 1:
         looser = 1.0
         while looser > windows.continuity * 1.01:
-            stage = eqx.tree_at(lambda p: p.windows.continuity, problem, looser)
+            stage = eqx.tree_at(lambda p: p.windows.continuity, problem, level(looser))
             stages.insert(-1, (stage, 1e-4))
             looser /= 10.0
     costs, evaluations, trials, steps = [], 0, 0, 0

@@ -14,7 +14,7 @@ import equinox as eqx
 import jax
 import jax.numpy as jnp
 
-from ._data import Inputs
+from ._data import Inputs, Level, level
 from ._parameters import Parameters
 
 __all__ = ["AbstractGauge", "KnownBodies", "KnownMass", "MeasuredInputs"]
@@ -53,7 +53,7 @@ class KnownMass(AbstractGauge):
     - `body`: the body, by index or name (static); `None` for the total mass.
     """
 
-    value: float
+    value: Level = eqx.field(converter=level)
     body: int | str | None = eqx.field(static=True, default=None)
 
     def _index(self, parameters):

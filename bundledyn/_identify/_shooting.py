@@ -28,7 +28,7 @@ from .._solver._rkmk import RKMK87
 from .._state import State
 from .._systems._multibody import AbstractMultibody
 from .._term import SceneTerm
-from ._data import Measurements, Noise
+from ._data import Level, Measurements, Noise, level
 from ._parameters import Parameters
 
 __all__ = ["Windows", "ShootingProblem"]
@@ -51,7 +51,7 @@ class Windows(eqx.Module):
     count: int = eqx.field(static=True, default=1)
     fit_states: bool = eqx.field(static=True, default=True)
     substeps: int = eqx.field(static=True, default=1)
-    continuity: float = 1e-3
+    continuity: Level = eqx.field(default=1e-3, converter=level)
 
     def __check_init__(self):
         if self.count < 1 or self.substeps < 1:
