@@ -1,0 +1,91 @@
+"""`python -m benchmarks.identification`: the run, `--quick` and `--report-only` (see the
+package's docstring)."""
+
+import argparse
+import dataclasses
+import json
+import pathlib
+import time
+
+from benchmarks import _output
+from benchmarks._provenance import environment, provenance
+
+DESCRIPTION = "Identification against mujoco.sysid, on the same MuJoCo-generated data sets."
+NAME = "identification"
+PACKAGES = ("bundledyn", "jax", "jaxlib", "equinox", "diffrax", "numpy", "mujoco")
+LEVELS = (0.0, 0.001, 0.01)
+SYSID_ITERS = 40
+
+
+def _parser():
+    parser = argparse.ArgumentParser(description=DESCRIPTION)
+    parser.add_argument(
+        "--quick",
+        action="store_true",
+        help="the tumbling body only, short record, one seed and noise level; writes to a "
+        "temporary folder (or --out), never to benchmarks/results",
+    )
+    parser.add_argument(
+        "--out", type=pathlib.Path, help="results folder (default benchmarks/results)"
+    )
+    parser.add_argument("--seeds", type=int, help="seeds per case (default 2; quick 1)")
+    parser.add_argument("--cases", help="comma-separated subset of chain,arm,tumble")
+    parser.add_argument("--sysid-iters", type=int, help=f"default {SYSID_ITERS}; quick 8")
+    parser.add_argument("--report-only", action="store_true", help="redraw the .md from the .json")
+    return parser
+
+
+def measure(args):
+    """Every case's fits by both methods, with provenance; None without mujoco.sysid."""
+    import bundledyn as bd
+    from benchmarks.identification import sysid
+    from benchmarks.identification.cases import CASES
+    from benchmarks.identification.run import run_case, summarize
+
+    bd.enable_x64()
+    if not sysid.available():
+        print("mujoco.sysid is not importable (pip install '.[bench]')")
+        return None
+    seeds = tuple(range(args.seeds or (1 if args.quick else 2)))
+    sysid_iters = args.sysid_iters or (8 if args.quick else SYSID_ITERS)
+    names = args.cases.split(",") if args.cases else (["tumble"] if args.quick else list(CASES))
+    levels = (0.01,) if args.quick else LEVELS
+    report = {
+        "provenance": provenance(),
+        "environment": environment(PACKAGES),
+        "quick": args.quick,
+        "seeds": len(seeds),
+        "levels": list(levels),
+        "sysid_iters": sysid_iters,
+        "cases": {},
+    }
+    began = time.perf_counter()
+    for name in names:
+        case = CASES[name]
+        if args.quick:
+            case = dataclasses.replace(case, t1=1.5, held_out_t1=1.0)
+        print(f"{name}: {case.description}", flush=True)
+        result = run_case(case, seeds, levels, sysid_iters, log=lambda s: print(s, flush=True))
+        result["summary"] = summarize(result)
+        report["cases"][name] = result
+    report["seconds"] = time.perf_counter() - began
+    return report
+
+
+def main(argv=None):
+    from benchmarks.identification.report import markdown
+
+    args = _parser().parse_args(argv)
+    out = _output.folder(args.out, args.quick, NAME, args.report_only)
+    stem = _output.stem(NAME, args.quick)
+    if args.report_only:
+        report = json.loads((out / f"{stem}.json").read_text())
+        (out / f"{stem}.md").write_text(markdown(report))
+        return report
+    report = measure(args)
+    if report is None:
+        return None
+    text = markdown(report)
+    print(text)
+    _output.write(out, stem, report, text)
+    return report
