@@ -1,12 +1,31 @@
 """Where a benchmark writes its results: `benchmarks/results/` for a full run, never for a
 quick one (a temporary folder unless `--out` says where)."""
 
+import argparse
 import json
 import pathlib
 import tempfile
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 RESULTS = ROOT / "benchmarks" / "results"
+
+
+def parser(description, quick):
+    """An argument parser with the options every benchmark has: `--quick` (what `quick`
+    says it runs), `--out` and `--report-only`."""
+    parser = argparse.ArgumentParser(description=description)
+    parser.add_argument(
+        "--quick",
+        action="store_true",
+        help=f"{quick}; writes to a temporary folder (or --out), never to benchmarks/results",
+    )
+    parser.add_argument(
+        "--out", type=pathlib.Path, help="results folder (default benchmarks/results)"
+    )
+    parser.add_argument(
+        "--report-only", action="store_true", help="redraw the report from the results JSON"
+    )
+    return parser
 
 
 def stem(name, quick):

@@ -1,8 +1,10 @@
 """The benchmark scripts stay alive: `--quick` runs end to end (timings are never asserted)."""
 
+import dataclasses
 import json
 
 import numpy as np
+import pytest
 
 from benchmarks import accuracy_cost
 
@@ -94,3 +96,49 @@ def test_speed_gradient_baselines_solve_their_odes():
     e = jnp.zeros(30).at[4].set(1e-5)
     fd = (loss(y0 + e) - loss(y0 - e)) / 2e-5
     assert jnp.allclose(jax.grad(loss)(y0)[4], fd, rtol=1e-8)
+
+
+@pytest.mark.parametrize("name", ["chain", "arm", "tumble"])
+def test_identification_error_ignores_exactly_what_motion_cannot_show(name):
+    """The identification benchmark scores fits beside `null_directions`, built from the
+    geometry. MuJoCo confirms them: moving every fitted body's pseudo-inertia along a random
+    combination of them (1e-4 of the smallest body's size) leaves the recorded motion unchanged to
+    rounding, while a random change outside them, as large, changes it visibly."""
+    mujoco = pytest.importorskip("mujoco")
+    from benchmarks.identification import metric, records
+    from benchmarks.identification.cases import CASES
+
+    case = dataclasses.replace(CASES[name], t1=1.0)
+    P = metric.model_pseudo_inertias(mujoco.MjModel.from_xml_string(case.mjcf), case.bodies)
+    D = metric.null_directions(case, P)
+    rng = np.random.default_rng(0)
+    hidden = D @ rng.normal(size=D.shape[1])
+    seen = rng.normal(size=P.size)
+    seen = (seen + seen.reshape(P.shape).transpose(0, 2, 1).reshape(-1)) / 2  # symmetric
+    seen -= D @ np.linalg.lstsq(D, seen, rcond=None)[0]
+
+    def moved(direction):
+        size = np.min(np.linalg.norm(P, axis=(1, 2)))
+        step = 1e-4 * size * direction / np.linalg.norm(direction)
+        model = metric.model_with(case, P + step.reshape(P.shape))
+        _, qpos, qvel = records.mujoco_record(case, 0, case.t1, model=model)
+        return np.max(np.abs(np.hstack([qpos - qpos0, qvel - qvel0])))
+
+    _, qpos0, qvel0 = records.mujoco_record(case, 0, case.t1)
+    assert moved(hidden) < 1e-10
+    assert moved(seen) > 1e-6
+
+
+def test_identification_report_redraws_from_its_json(tmp_path):
+    """The committed identification results are self-consistent: `--report-only` rebuilds
+    the same markdown from the JSON, which names the code it measured."""
+    from benchmarks import identification
+    from benchmarks._output import RESULTS
+
+    (tmp_path / "identification.json").write_bytes((RESULTS / "identification.json").read_bytes())
+    report = identification.main(["--report-only", "--out", str(tmp_path)])
+    text = (tmp_path / "identification.md").read_text()
+    assert text == (RESULTS / "identification.md").read_text()
+    assert report["provenance"]["commit"] and f"`{report['provenance']['commit'][:12]}`" in text
+    assert set(report["cases"]) == {"chain", "arm", "tumble"}
+    assert all(set(c["summary"]) == {"0", "0.001", "0.01"} for c in report["cases"].values())

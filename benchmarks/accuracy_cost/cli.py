@@ -1,9 +1,7 @@
 """`python -m benchmarks.accuracy_cost`: the sweep, `--report-only` and `--extras-only`
 (see the package's docstring)."""
 
-import argparse
 import json
-import pathlib
 
 from benchmarks import _output
 from benchmarks._provenance import environment, provenance
@@ -77,21 +75,9 @@ def redraw(out, quick):
 
 
 def main(argv=None):
-    parser = argparse.ArgumentParser(description=DESCRIPTION)
-    parser.add_argument(
-        "--quick",
-        action="store_true",
-        help="one scene, three points per method; writes to a temporary folder (or --out), "
-        "never to benchmarks/results",
-    )
-    parser.add_argument(
-        "--out", type=pathlib.Path, help="results folder (default benchmarks/results)"
-    )
+    parser = _output.parser(DESCRIPTION, "one scene, three points per method")
     parser.add_argument("--repeats", type=int, default=5)
     parser.add_argument("--problems", nargs="*", help="subset of " + ", ".join(PROBLEMS))
-    parser.add_argument(
-        "--report-only", action="store_true", help="rewrite the markdown and diagrams from the JSON"
-    )
     parser.add_argument(
         "--extras-only",
         action="store_true",

@@ -1,10 +1,8 @@
 """`python -m benchmarks.identification`: the run, `--quick` and `--report-only` (see the
 package's docstring)."""
 
-import argparse
 import dataclasses
 import json
-import pathlib
 import time
 
 from benchmarks import _output
@@ -18,20 +16,12 @@ SYSID_ITERS = 40
 
 
 def _parser():
-    parser = argparse.ArgumentParser(description=DESCRIPTION)
-    parser.add_argument(
-        "--quick",
-        action="store_true",
-        help="the tumbling body only, short record, one seed and noise level; writes to a "
-        "temporary folder (or --out), never to benchmarks/results",
-    )
-    parser.add_argument(
-        "--out", type=pathlib.Path, help="results folder (default benchmarks/results)"
+    parser = _output.parser(
+        DESCRIPTION, "the tumbling body only, short record, one seed and noise level"
     )
     parser.add_argument("--seeds", type=int, help="seeds per case (default 2; quick 1)")
     parser.add_argument("--cases", help="comma-separated subset of chain,arm,tumble")
     parser.add_argument("--sysid-iters", type=int, help=f"default {SYSID_ITERS}; quick 8")
-    parser.add_argument("--report-only", action="store_true", help="redraw the .md from the .json")
     return parser
 
 

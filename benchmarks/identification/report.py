@@ -121,4 +121,4 @@ def goal_paragraph(report):
         text.append("Error not lower: " + "; ".join(misses_error) + ".")
     if misses_time:
         text.append("Time above a fifth: " + "; ".join(misses_time) + ".")
-    return [" ".join(text)] + report.get("discussion", [])
+    return [" ".join(text)]

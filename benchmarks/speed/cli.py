@@ -4,7 +4,6 @@
 import argparse
 import json
 import os
-import pathlib
 import sys
 
 from benchmarks import _output
@@ -103,20 +102,8 @@ def redraw(out, quick):
 
 
 def main(argv=None):
-    parser = argparse.ArgumentParser(description=DESCRIPTION)
-    parser.add_argument(
-        "--quick",
-        action="store_true",
-        help="small sizes, 2 repeats; writes to a temporary folder (or --out), never to "
-        "benchmarks/results",
-    )
+    parser = _output.parser(DESCRIPTION, "small sizes, 2 repeats")
     parser.add_argument("--repeats", type=int, help="timed repeats (default 5; quick 2)")
-    parser.add_argument(
-        "--out", type=pathlib.Path, help="results folder (default benchmarks/results)"
-    )
-    parser.add_argument(
-        "--report-only", action="store_true", help="redraw speed.md from speed.json"
-    )
     parser.add_argument(
         "--device-batch",
         action="store_true",
