@@ -39,8 +39,9 @@ def _joint(kind, i):
 
 
 @functools.cache
-def chain(n, kinds=_JOINT_CYCLE):
-    """A free-floating chain of `n` boxes, joints cycling through `kinds`."""
+def chain(n, kinds=_JOINT_CYCLE, armature=None):
+    """A free-floating chain of `n` boxes, joints cycling through `kinds`, with the rotor
+    inertia `armature` of its shape coordinates (a tuple; none by default)."""
     bodies = [
         box_body(1.0 + 0.3 * i, (0.5, 0.1 + 0.02 * i, 0.08), (0.02 * i, 0.01, 0.0))
         for i in range(n)
@@ -51,7 +52,7 @@ def chain(n, kinds=_JOINT_CYCLE):
         bd.Link(bodies[i], _joint(kinds[(i - 1) % len(kinds)], i), i - 1, placement)
         for i in range(1, n)
     ]
-    return bd.Multibody(bodies[0], links)
+    return bd.Multibody(bodies[0], links, armature=armature)
 
 
 def chain3_state():
@@ -92,6 +93,12 @@ def mjcf_chain():
     return bd.Multibody.from_mjcf(MODELS / "chain5.xml")
 
 
+def rotor_chain():
+    """`chain(5)` with rotor inertia (MuJoCo's armature) on its hinge and universal
+    coordinates, none on the spherical joint's."""
+    return chain(5, armature=(0.3, 0.2, 0.1, 0.0, 0.0, 0.0, 0.4))
+
+
 def rigid_generic():
     """The asymmetric rigid body's kinetic energy given as a user function."""
     M = asymmetric_body().spatial_inertia()
@@ -109,6 +116,7 @@ SYSTEMS = {
     "tree4": tree4,
     "affine_body": affine_body,
     "mjcf_chain5": mjcf_chain,
+    "rotor_chain5": rotor_chain,
 }
 
 

@@ -33,10 +33,13 @@ worldbody, a joint other than a free joint on the root, free joints below the ro
 (MuJoCo itself rejects those), equality constraints, tendons, bodies without mass that
 carry joints, and a root body without mass.
 
+Kept: the armature (rotor inertia) of hinges and slides, which MuJoCo adds to its mass
+matrix, as the `Multibody`'s `armature`.
+
 Ignored, with one warning listing what the model had: contacts (geoms with a non-zero
 `contype`/`conaffinity`), actuators, sensors, joint limits, joint stiffness, damping,
-friction loss, armature (rotor inertia: MuJoCo adds it to its mass matrix, bundledyn's
-metric does not have it), gravity compensation, fluid forces and flexes. Gravity
+friction loss, the armature of ball and free joints, gravity compensation, fluid forces
+and flexes. Gravity
 (`option/gravity`) is not imported either: it is an effect of the scene.
 
 The state converters are in `_mujoco_state.py`.
@@ -66,14 +69,16 @@ class ModelParts(NamedTuple):
     """What an imported model's tree is made of, ready for `Multibody`.
 
     **Fields:** `base` (the root `RigidBody`), `links` (the `Link`s in MuJoCo's body
-    order), `names` (the bodies' MuJoCo names, base first) and `model` (the compiled
-    `mujoco.MjModel` they were read from).
+    order), `names` (the bodies' MuJoCo names, base first), `model` (the compiled
+    `mujoco.MjModel` they were read from) and `armature` (each shape coordinate's rotor
+    inertia: a hinge's or slide's `armature`, zero for a ball joint's coordinates).
     """
 
     base: RigidBody
     links: tuple[Link, ...]
     names: tuple[str, ...]
     model: Any
+    armature: np.ndarray
 
 
 def _import_mujoco():
@@ -304,11 +309,15 @@ def _ignored_elements(model):
     for field, what in (
         ("dof_damping", "damping"),
         ("dof_frictionloss", "friction loss"),
-        ("dof_armature", "armature (rotor inertia, part of MuJoCo's mass matrix)"),
     ):
         mask = np.zeros(model.njnt, bool)
         mask[dof_joint[np.asarray(getattr(model, field)) != 0]] = True
         joints_where(mask, what)
+    # A hinge's or slide's armature enters the metric; a ball's or free joint's does not.
+    mask = np.zeros(model.njnt, bool)
+    mask[dof_joint[np.asarray(model.dof_armature) != 0]] = True
+    mask &= ~np.isin(np.asarray(model.jnt_type), (_HINGE, _SLIDE))
+    joints_where(mask, "armature (rotor inertia, in MuJoCo's mass matrix) of ball/free joint")
     if np.any(np.asarray(model.body_gravcomp) != 0):
         ignored.append("gravity compensation (body gravcomp)")
     if model.opt.density != 0 or model.opt.viscosity != 0:
@@ -352,6 +361,7 @@ def parts_from_mjmodel(model) -> ModelParts:
     welded = {}  # MuJoCo body welded away -> (bundledyn body, its pose in that body)
     links = []
     refs = []
+    armature = []
     for b in range(root + 1, model.nbody):
         p = int(model.body_parentid[b])
         local = _pose_np(model.body_pos[b], model.body_quat[b])
@@ -375,7 +385,10 @@ def parts_from_mjmodel(model) -> ModelParts:
             welded[b] = (parent, placement)
             continue
         for j in joints:
-            if int(model.jnt_type[j]) in (_HINGE, _SLIDE):
+            screw = int(model.jnt_type[j]) in (_HINGE, _SLIDE)
+            dof = int(model.jnt_dofadr[j])
+            armature += [float(model.dof_armature[dof])] if screw else [0.0, 0.0, 0.0]
+            if screw:
                 ref = float(model.qpos0[model.jnt_qposadr[j]])
                 if ref != 0.0:
                     refs.append(f"'{_name(model, 'joint', j)}' (ref {ref:g})")
@@ -385,7 +398,8 @@ def parts_from_mjmodel(model) -> ModelParts:
     ignored = _ignored_elements(model)
     if ignored:
         warnings.warn(
-            "bundledyn's Multibody keeps the kinematic tree and the inertias only; ignored "
+            "bundledyn's Multibody keeps the kinematic tree, the inertias and the rotor "
+            "inertia of hinges and slides only; ignored "
             "from the MuJoCo model: " + "; ".join(ignored) + ".",
             stacklevel=4,
         )
@@ -396,4 +410,4 @@ def parts_from_mjmodel(model) -> ModelParts:
             "`bundledyn.state_from_mujoco` / `bundledyn.state_to_mujoco`.",
             stacklevel=4,
         )
-    return ModelParts(base, tuple(links), tuple(names), model)
+    return ModelParts(base, tuple(links), tuple(names), model, np.array(armature, dtype=float))

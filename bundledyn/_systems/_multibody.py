@@ -19,7 +19,7 @@ from ._rigid_body import RigidBody, spatial_inertia
 from ._screws import pose, unit_screw_exp, unit_screws
 from ._tree import Tree, column_tables, tree_tables
 from ._tree_metric import TreeMetricJet, composite_metric
-from ._validation import checked_inertia, checked_mass
+from ._validation import check_shape, checked_inertia, checked_mass, concrete
 
 
 class AbstractMultibody(AbstractInertialSystem):
@@ -106,7 +106,10 @@ class Multibody(AbstractMultibody):
     joint's factors in order). The metric is
     $G = \sum_a \hat J_a^T \operatorname{Ad}_{r_a^{-1}}^T M_a \operatorname{Ad}_{r_a^{-1}} \hat J_a$
     with $\hat J_a = [1 \mid Z \odot \text{path}_a]$, $Z_j = \operatorname{Ad}_{r_j} S_j$ the
-    joint screws in the section frame (DESIGN §2), computed for all bodies at once.
+    joint screws in the section frame (DESIGN §2), computed for all bodies at once, plus the
+    rotor inertia of the joints' drives: $\tfrac12\sum_j a_j \dot q_j^2$ adds $\operatorname{diag}(0_6, a)$
+    (MuJoCo's `armature`). It involves neither $g$ nor $\xi$, so the metric stays
+    $SE(3)$-invariant and every geometric quantity follows from it.
 
     The joint screws `screw_axes` are unit screws (a rotation axis $|\omega| = 1$, a
     translation $\omega = 0$), and derivatives with respect to them are taken along unit
@@ -118,6 +121,8 @@ class Multibody(AbstractMultibody):
     - `base`: the floating base `RigidBody` (body 0).
     - `links`: a sequence of `Link`, body $i$ is `links[i-1]`.
     - `names`: optional body names (static), e.g. from MJCF.
+    - `armature`: the rotor inertia $a_j \ge 0$ of each shape coordinate, shape `(d,)`
+      (default zero); hinge and slide coordinates only.
     """
 
     mass: Float[Array, " n"]
@@ -126,12 +131,13 @@ class Multibody(AbstractMultibody):
     placement: Float[Array, "n 4 4"]
     screw_axes: Float[Array, "m 6"]
     ball_anchors: Float[Array, "k 3"]
+    armature: Float[Array, " d"]
     parents: tuple[int, ...] = eqx.field(static=True)
     joint_types: tuple[str, ...] = eqx.field(static=True)
     names: tuple[str, ...] = eqx.field(static=True)
     tables: Tree = eqx.field(static=True, repr=False)
 
-    def __init__(self, base, links, *, names=None):
+    def __init__(self, base, links, *, names=None, armature=None):
         links = tuple(links)
         for i, link in enumerate(links, start=1):
             if not isinstance(link, Link):
@@ -158,6 +164,9 @@ class Multibody(AbstractMultibody):
         self.tables = tables
         if len(self.names) != n:
             raise ValueError(f"`names` must name all {n} bodies, got {len(self.names)}.")
+        d = tables.shape_dim
+        self.armature = jnp.zeros(d) if armature is None else jnp.asarray(armature, dtype=float)
+        _check_armature(self.armature, tables)
 
     @property
     def shape_dim(self) -> int:
@@ -268,11 +277,16 @@ class Multibody(AbstractMultibody):
         com = jnp.einsum("aij,aj->ai", R, self.com) + p
         return spatial_inertia(self.mass, com, einsum("aij,ajk,alk->ail", R, self.inertia, R))
 
+    def _rotor_inertia(self, dtype):
+        r"""$\operatorname{diag}(0_6, a)$: the drives' rotor inertia in the metric (constant in $q$)."""
+        return jnp.diag(jnp.concatenate([jnp.zeros(6, dtype), self.armature.astype(dtype)]))
+
     def metric(self, q):
         r, Jhat = self.velocity_jacobians(q)
         # Σ_a Ĵ_aᵀ M_a Ĵ_a as one matrix product over the stacked rows of all bodies.
         rows = Jhat.reshape(-1, Jhat.shape[-1])
-        return rows.T @ (self._section_inertias(r) @ Jhat).reshape(rows.shape)
+        bodies = rows.T @ (self._section_inertias(r) @ Jhat).reshape(rows.shape)
+        return bodies + self._rotor_inertia(q.dtype)
 
     def metric_jet(self, q):
         r"""The metric and its derivative contractions in closed form (screw theory, DESIGN §4).
@@ -300,6 +314,7 @@ class Multibody(AbstractMultibody):
             jnp.asarray(a, q.dtype) for a in column_tables(self.tables)
         )
         G = composite_metric(inertias, Z, path, at_or_above, strictly_above)
+        G = G + self._rotor_inertia(q.dtype)  # constant: no derivative terms
         ball_dZ = self._ball_column_derivative(q, T, ball_nodes) if len(ball_nodes) else None
         return TreeMetricJet(G, Z, inertias, ball_dZ, path, at_or_above, strictly_above)
 
@@ -330,7 +345,7 @@ class Multibody(AbstractMultibody):
     @classmethod
     def from_parts(cls, parts: ModelParts, *, section=0) -> AbstractMultibody:
         """The tree of an imported model's parts (`ModelParts`), its section at body `section`."""
-        system = cls(parts.base, parts.links, names=parts.names)
+        system = cls(parts.base, parts.links, names=parts.names, armature=parts.armature)
         if isinstance(section, str):
             if section not in parts.names:
                 raise ValueError(
@@ -378,6 +393,24 @@ class Multibody(AbstractMultibody):
         As `from_mjcf`.
         """
         return cls.from_parts(parts_from_urdf(path), section=section)
+
+
+def _check_armature(armature, tables: Tree):
+    """`ValueError` with the fix for a rotor inertia of the wrong shape, negative, or on a
+    ball joint (whose coordinates are not its angular velocity); values only when concrete."""
+    check_shape("armature", armature, (tables.shape_dim,))
+    a = concrete(armature)
+    if a is None:
+        return
+    if np.any(a < 0):
+        raise ValueError(f"`armature` must be non-negative, got {a}.")
+    kinds, starts = np.array(tables.kinds), np.array(tables.q_start)
+    ball = (starts[kinds == "ball"][:, None] + np.arange(3)).reshape(-1).astype(int)
+    if np.any(a[ball] != 0):
+        raise ValueError(
+            "`armature` on a ball joint's coordinates is not supported (they are exponential "
+            "coordinates, not its angular velocity): set it to 0 there."
+        )
 
 
 class Resectioned(AbstractMultibody):
