@@ -5,11 +5,14 @@ from collections.abc import Callable
 import equinox as eqx
 import jax
 import jax.numpy as jnp
+import numpy as np
 
 from . import lie
-from ._effects import AbstractEffect, Kinematics
+from ._effects import AbstractEffect, Gravity, Kinematics, ShapeDamper, ShapeSpring
 from ._frames import AbstractFrame
 from ._systems._base import AbstractSystem
+from ._systems._mujoco_import import parts_from_mjcf
+from ._systems._multibody import Multibody
 
 
 class Free(eqx.Module):
@@ -135,6 +138,36 @@ class Scene(eqx.Module):
                 raise ValueError(
                     "give a `PrescribedBase`'s motion in the Galilean frame (frame=None)."
                 )
+
+    @classmethod
+    def from_mjcf(cls, source, *, section=0, passive: bool = False, gravity: bool = False):
+        r"""The scene of an MJCF model: its tree and, when asked, its joints' springs and
+        dampers and its gravity (MuJoCo's own parser; the `mujoco` extra).
+
+        **Arguments:**
+
+        - `source`: a path to an MJCF file, an MJCF XML string, or a `mujoco.MjModel`.
+        - `section`: the section body, as in `Multibody.from_mjcf`.
+        - `passive`: add the hinges' and slides' `damping` as a `ShapeDamper` and their
+          `stiffness` about `springref` as a `ShapeSpring` (MuJoCo's passive joint forces
+          $-b\,\dot q$ and $-k\,(q - q_{\rm spring})$).
+        - `gravity`: add the model's `<option gravity>` as a `Gravity` (none if it is zero).
+
+        **Returns:**
+
+        A `Scene` of the `Multibody` with those effects (only those with a non-zero value).
+        """
+        parts = parts_from_mjcf(source, passive=passive)
+        effects = []
+        if passive and np.any(parts.damping):
+            effects.append(ShapeDamper(parts.damping))
+        if passive and np.any(parts.stiffness):
+            effects.append(ShapeSpring(parts.stiffness, parts.spring_rest))
+        acceleration = np.asarray(parts.model.opt.gravity, dtype=float)
+        if gravity and np.any(acceleration):
+            size = float(np.linalg.norm(acceleration))
+            effects.append(Gravity(size, acceleration / size))
+        return cls(Multibody.from_parts(parts, section=section), effects)
 
     @property
     def free_shape(self) -> bool:

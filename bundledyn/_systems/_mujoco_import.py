@@ -61,6 +61,7 @@ __all__ = ["ModelParts", "parts_from_mjcf", "parts_from_mjmodel", "parts_from_ur
 
 # MuJoCo's mjtJoint values.
 _FREE, _BALL, _SLIDE, _HINGE = 0, 1, 2, 3
+_WRAP_JOINT = 1  # mjtWrap.mjWRAP_JOINT: a fixed tendon's joint term
 _JOINT_NAMES = {_FREE: "free", _BALL: "ball", _SLIDE: "slide", _HINGE: "hinge"}
 _MINVAL = 1e-15  # mjMINVAL: MuJoCo's threshold for "no mass"
 
@@ -70,8 +71,10 @@ class ModelParts(NamedTuple):
 
     **Fields:** `base` (the root `RigidBody`), `links` (the `Link`s in MuJoCo's body
     order), `names` (the bodies' MuJoCo names, base first), `model` (the compiled
-    `mujoco.MjModel` they were read from) and `armature` (each shape coordinate's rotor
-    inertia: a hinge's or slide's `armature`, zero for a ball joint's coordinates).
+    `mujoco.MjModel` they were read from), per shape coordinate the hinges' and slides'
+    `armature` (rotor inertia), `damping`, `stiffness` and `spring_rest` (`springref` as a
+    shape coordinate, $q = $ `qpos - qpos0`), zero for a ball joint's coordinates, and
+    `ignored` (what the import left out, as the warning lists it).
     """
 
     base: RigidBody
@@ -79,6 +82,10 @@ class ModelParts(NamedTuple):
     names: tuple[str, ...]
     model: Any
     armature: np.ndarray
+    damping: np.ndarray
+    stiffness: np.ndarray
+    spring_rest: np.ndarray
+    ignored: tuple[str, ...]
 
 
 def _import_mujoco():
@@ -97,13 +104,14 @@ def _import_mujoco():
 # --------------------------------------------------------------------------------------
 
 
-def parts_from_mjcf(source) -> ModelParts:
+def parts_from_mjcf(source, *, passive: bool = False) -> ModelParts:
     """The parts of the tree of an MJCF model, compiled by MuJoCo's own parser.
 
     **Arguments:**
 
     - `source`: a path (`str` or `os.PathLike`) to an MJCF file, an MJCF XML string, or
       an already compiled `mujoco.MjModel`.
+    - `passive`: whether the joints' springs and dampers will be used (not warned about).
 
     **Returns:**
 
@@ -113,7 +121,7 @@ def parts_from_mjcf(source) -> ModelParts:
     # MuJoCo's bindings are compiled and ship no type stubs: pyright cannot see `MjModel`.
     is_model = isinstance(source, mujoco.MjModel)  # pyright: ignore[reportAttributeAccessIssue]
     model = source if is_model else _compile(mujoco, source)
-    return parts_from_mjmodel(model)
+    return parts_from_mjmodel(model, passive=passive)
 
 
 def _compile(mujoco, source):
@@ -248,12 +256,13 @@ def _check_unsupported(model):
             "Multibody is a tree without closed loops or welds. Remove the <equality> "
             "elements (model a weld by putting the bodies in one body, a loop by cutting it)."
         )
-    if model.ntendon > 0:
-        names = ", ".join(f"'{_name(model, 'tendon', i)}'" for i in range(model.ntendon))
+    passive_or_spatial = [i for i in range(model.ntendon) if not _plain_fixed_tendon(model, i)]
+    if passive_or_spatial:
+        names = ", ".join(f"'{_name(model, 'tendon', i)}'" for i in passive_or_spatial)
         raise ValueError(
-            f"the model has {model.ntendon} tendon(s) ({names}); tendons (their lengths, "
-            "limits, springs and the actuators that drive them) are not supported. Remove "
-            "the <tendon> elements and whatever refers to them."
+            f"the model has tendon(s) {names} that are spatial or carry a spring or damper; "
+            "bundledyn supports only fixed tendons without passive forces (ignored, like "
+            "joint limits). Remove those <tendon> elements and whatever refers to them."
         )
     roots = [b for b in range(1, model.nbody) if model.body_parentid[b] == 0]
     if not roots:
@@ -287,7 +296,15 @@ def _check_unsupported(model):
     return root
 
 
-def _ignored_elements(model):
+def _plain_fixed_tendon(model, i) -> bool:
+    """Whether tendon `i` is a fixed tendon (a combination of joint coordinates) with no
+    stiffness or damping: then it only couples joint limits, and ignoring it changes no motion."""
+    wraps = range(int(model.tendon_adr[i]), int(model.tendon_adr[i]) + int(model.tendon_num[i]))
+    fixed = all(int(model.wrap_type[w]) == _WRAP_JOINT for w in wraps)
+    return fixed and model.tendon_stiffness[i] == 0 and model.tendon_damping[i] == 0
+
+
+def _ignored_elements(model, passive: bool):
     ignored = []
     contact = np.flatnonzero((model.geom_contype != 0) | (model.geom_conaffinity != 0))
     if contact.size:
@@ -304,20 +321,25 @@ def _ignored_elements(model):
             ignored.append(f"{what} of joint(s) {names}")
 
     joints_where(np.asarray(model.jnt_limited, bool), "limits")
-    joints_where(np.asarray(model.jnt_stiffness) != 0, "stiffness")
+    if model.ntendon:
+        names = ", ".join(f"'{_name(model, 'tendon', i)}'" for i in range(model.ntendon))
+        ignored.append(f"fixed tendon(s) {names} (no passive force: their limits only)")
     dof_joint = np.asarray(model.dof_jntid)
-    for field, what in (
-        ("dof_damping", "damping"),
-        ("dof_frictionloss", "friction loss"),
-    ):
+    screw = np.isin(np.asarray(model.jnt_type), (_HINGE, _SLIDE))
+
+    def dofs_where(field):
         mask = np.zeros(model.njnt, bool)
         mask[dof_joint[np.asarray(getattr(model, field)) != 0]] = True
-        joints_where(mask, what)
-    # A hinge's or slide's armature enters the metric; a ball's or free joint's does not.
-    mask = np.zeros(model.njnt, bool)
-    mask[dof_joint[np.asarray(model.dof_armature) != 0]] = True
-    mask &= ~np.isin(np.asarray(model.jnt_type), (_HINGE, _SLIDE))
-    joints_where(mask, "armature (rotor inertia, in MuJoCo's mass matrix) of ball/free joint")
+        return mask
+
+    # A hinge's or slide's armature enters the metric; its spring and damper enter the
+    # scene when asked (`Scene.from_mjcf(..., passive=True)`); a ball's or free joint's do not.
+    kept = screw if passive else np.zeros(model.njnt, bool)
+    joints_where((np.asarray(model.jnt_stiffness) != 0) & ~kept, "stiffness")
+    joints_where(dofs_where("dof_damping") & ~kept, "damping")
+    joints_where(dofs_where("dof_frictionloss"), "friction loss")
+    what = "armature (rotor inertia, in MuJoCo's mass matrix) of ball/free joint"
+    joints_where(dofs_where("dof_armature") & ~screw, what)
     if np.any(np.asarray(model.body_gravcomp) != 0):
         ignored.append("gravity compensation (body gravcomp)")
     if model.opt.density != 0 or model.opt.viscosity != 0:
@@ -327,12 +349,13 @@ def _ignored_elements(model):
     return ignored
 
 
-def parts_from_mjmodel(model) -> ModelParts:
+def parts_from_mjmodel(model, *, passive: bool = False) -> ModelParts:
     """The parts of the tree of a compiled `mujoco.MjModel` (see the module docstring).
 
     **Arguments:**
 
     - `model`: the `mujoco.MjModel`.
+    - `passive`: whether the joints' springs and dampers will be used (not warned about).
 
     **Returns:**
 
@@ -361,7 +384,7 @@ def parts_from_mjmodel(model) -> ModelParts:
     welded = {}  # MuJoCo body welded away -> (bundledyn body, its pose in that body)
     links = []
     refs = []
-    armature = []
+    armature, damping, stiffness, rest = [], [], [], []
     for b in range(root + 1, model.nbody):
         p = int(model.body_parentid[b])
         local = _pose_np(model.body_pos[b], model.body_quat[b])
@@ -385,17 +408,22 @@ def parts_from_mjmodel(model) -> ModelParts:
             welded[b] = (parent, placement)
             continue
         for j in joints:
-            screw = int(model.jnt_type[j]) in (_HINGE, _SLIDE)
             dof = int(model.jnt_dofadr[j])
-            armature += [float(model.dof_armature[dof])] if screw else [0.0, 0.0, 0.0]
-            if screw:
-                ref = float(model.qpos0[model.jnt_qposadr[j]])
-                if ref != 0.0:
-                    refs.append(f"'{_name(model, 'joint', j)}' (ref {ref:g})")
+            if int(model.jnt_type[j]) not in (_HINGE, _SLIDE):
+                for values in (armature, damping, stiffness, rest):
+                    values += [0.0, 0.0, 0.0]
+                continue
+            address = int(model.jnt_qposadr[j])
+            armature.append(float(model.dof_armature[dof]))
+            damping.append(float(model.dof_damping[dof]))
+            stiffness.append(float(model.jnt_stiffness[j]))
+            rest.append(float(model.qpos_spring[address] - model.qpos0[address]))
+            if model.qpos0[address] != 0.0:
+                refs.append(f"'{_name(model, 'joint', j)}' (ref {model.qpos0[address]:g})")
         index[b] = len(links) + 1
         names.append(_name(model, "body", b))
         links.append(Link(rigid_body(b), _body_joint(model, b, joints), parent, placement))
-    ignored = _ignored_elements(model)
+    ignored = _ignored_elements(model, passive)
     if ignored:
         warnings.warn(
             "bundledyn's Multibody keeps the kinematic tree, the inertias and the rotor "
@@ -410,4 +438,9 @@ def parts_from_mjmodel(model) -> ModelParts:
             "`bundledyn.state_from_mujoco` / `bundledyn.state_to_mujoco`.",
             stacklevel=4,
         )
-    return ModelParts(base, tuple(links), tuple(names), model, np.array(armature, dtype=float))
+    return ModelParts(
+        base, tuple(links), tuple(names), model,
+        armature=np.array(armature, dtype=float), damping=np.array(damping, dtype=float),
+        stiffness=np.array(stiffness, dtype=float), spring_rest=np.array(rest, dtype=float),
+        ignored=tuple(ignored),
+    )  # fmt: skip
