@@ -261,6 +261,8 @@ def _affine_body(t: _Table):
 
 
 def _model(t: _Table, kind, folder):
+    """An imported model's system, no solids, and the effects it asks for: an MJCF's joint
+    springs and dampers (`passive = true`) and gravity (`gravity = "model"`)."""
     if t.has("path") == t.has("model"):
         raise t.fail("path", "give exactly one of `path` (a file) or `model` (a shipped model).")
     if t.has("model"):
@@ -272,20 +274,25 @@ def _model(t: _Table, kind, folder):
         source = (folder / t.string("path")).resolve()
         if not source.is_file():
             raise t.fail("path", f"no such file: {source}.")
+    if kind == "urdf":
+        with t.building(kind):
+            return Multibody.from_urdf(source), None, ()
+    passive = t.boolean("passive", False)
+    gravity = t.string("gravity", "none", {"none", "model"}) == "model"
     with t.building(kind):
-        load = Multibody.from_mjcf if kind == "mjcf" else Multibody.from_urdf
-        return load(source), None
+        scene = Scene.from_mjcf(source, passive=passive, gravity=gravity)
+    return scene.system, None, tuple(scene.effects)
 
 
 def _system(t: _Table, folder):
     kind = t.string("type", choices={"rigid_body", "multibody", "affine_body", "mjcf", "urdf"})
     if kind == "rigid_body":
         system, solid = _rigid_body(t)
-        built = system, (None if solid is None else (solid,))
+        built = system, (None if solid is None else (solid,)), ()
     elif kind == "multibody":
-        built = _multibody(t)
+        built = (*_multibody(t), ())
     elif kind == "affine_body":
-        built = _affine_body(t)
+        built = (*_affine_body(t), ())
     else:
         built = _model(t, kind, folder)
     t.done()
@@ -404,7 +411,9 @@ class SceneFile:
       `anchor`), `"spherical"` (`anchor`) or `"fixed"`, its placement in the parent at q = 0
       (`offset`, `rotation` vector), and a rigid body's fields), `"affine_body"` (`mass`,
       `radii` of a solid ellipsoid or `second_moment`), `"mjcf"` or `"urdf"` (`path`
-      relative to the scene file, or `model` = a file in `bundledyn.models`).
+      relative to the scene file, or `model` = a file in `bundledyn.models`; for MJCF,
+      `passive = true` adds the joints' springs and dampers and `gravity = "model"` the
+      model's gravity, as `Scene.from_mjcf` does).
     - `[[effects]]` `type` = `"gravity"` (`g`, `direction`, `gravitational_mass`,
       `centre_offset`), `"gravity_gradient"` (`mu`, `centre`, `per_body`: `BodywiseGravityGradient`),
       `"shape_spring"` (`stiffness`, `rest`) or `"shape_damper"` (`damping`).
@@ -451,9 +460,9 @@ class SceneFile:
         except tomllib.TOMLDecodeError as error:
             raise SceneFileError(f"{path}: not valid TOML: {error}.") from None
         root = _Table(path, "", data)
-        system, solids = _system(root.table("system"), path.parent)
+        system, solids, model_effects = _system(root.table("system"), path.parent)
         d = system.shape_dim
-        effects = tuple(_effect(t, d) for t in root.tables("effects"))
+        effects = model_effects + tuple(_effect(t, d) for t in root.tables("effects"))
 
         shape_table = root.table("shape", {})
         mode = shape_table.string("mode", "free", {"free", "prescribed"})

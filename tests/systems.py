@@ -164,3 +164,19 @@ def picture_size(path):
         pixels = np.asarray(image.convert("RGB"), dtype=float)
     assert pixels.std() > 10.0 and len(np.unique(pixels.reshape(-1, 3), axis=0)) > 20
     return pixels.shape[1], pixels.shape[0], frames
+
+
+# Gymnasium-style passive joints: damping, springs about springref (one with a reference
+# position), rotor inertia, gravity, and a fixed tendon that only couples joint ranges.
+PASSIVE = """<mujoco><option gravity="0 -2 -9.81" integrator="RK4" timestep="1e-4"/>
+<default><joint armature="0.2" damping="0.3"/></default><worldbody><body name="torso">
+<freejoint/><inertial pos="0.01 0 0" mass="2" diaginertia="0.1 0.2 0.3"/>
+<body name="a" pos="0.3 0 0"><joint name="j1" type="hinge" axis="0 0 1" stiffness="4"
+ springref="0.3"/><inertial pos="0.1 0 0" mass="0.5" diaginertia="0.01 0.02 0.02"/>
+<body name="b" pos="0.3 0 0"><joint name="j2" type="hinge" axis="0 1 0" ref="0.2"
+ stiffness="2" springref="-0.1"/><joint name="j3" type="slide" axis="1 0 0" stiffness="20"/>
+<inertial pos="0.1 0 0.02" mass="0.4" diaginertia="0.01 0.02 0.03"/></body></body>
+<body name="c" pos="-0.3 0 0"><joint name="j4" type="hinge" axis="1 0 0" damping="0"/>
+<inertial pos="-0.1 0 0" mass="0.5" diaginertia="0.01 0.02 0.02"/></body>
+</body></worldbody><tendon><fixed name="couple" limited="true" range="-1 1">
+<joint joint="j1" coef="1"/><joint joint="j4" coef="1"/></fixed></tendon></mujoco>"""

@@ -128,6 +128,28 @@ def test_check_reports_invariance(capsys):
     assert "on 64 sampled shapes" in out and "PASSED" in out
 
 
+def test_run_and_check_a_model_with_passive_joints_and_its_gravity(tmp_path, capsys):
+    """A scene file takes an MJCF model with its springs, dampers and gravity (`passive`,
+    `gravity = "model"`); `run` simulates it and `check` finds the imported model (rotor
+    inertia included) Galilean-invariant."""
+    from systems import PASSIVE
+
+    (tmp_path / "model.xml").write_text(PASSIVE)
+    scene = tmp_path / "passive.toml"
+    scene.write_text(
+        '[system]\ntype = "mjcf"\npath = "model.xml"\npassive = true\ngravity = "model"\n'
+        "[initial]\nxi = [0.3, 0.2, -0.4, 0.1, 0.0, 0.2]\nqdot = 0.5\n"
+        "[time]\nt1 = 0.5\nsaves = 11\n"
+    )
+    with pytest.warns(UserWarning, match="tendon"):
+        assert main(["run", str(scene), "--out", str(tmp_path), "--no-pictures"]) == 0
+        assert main(["check", str(tmp_path / "model.xml"), "--samples", "16"]) == 0
+    printed = capsys.readouterr().out
+    assert "PASSED" in printed and "FAILED" not in printed
+    effects = [type(e).__name__ for e in bd.SceneFile.load(scene).scene.effects]
+    assert effects == ["ShapeDamper", "ShapeSpring", "Gravity"]
+
+
 def test_console_script_is_installed_as_a_module():
     result = subprocess.run(
         [sys.executable, "-m", "bundledyn", "--help"], capture_output=True, text=True, check=True

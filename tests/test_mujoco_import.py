@@ -18,6 +18,8 @@ import pytest
 
 mujoco = pytest.importorskip("mujoco")
 
+from systems import PASSIVE  # noqa: E402
+
 import bundledyn  # noqa: E402
 from bundledyn import Multibody  # noqa: E402
 from bundledyn.lie import (  # noqa: E402
@@ -352,22 +354,6 @@ def test_a_model_with_rotor_inertia_moves_as_mujoco_moves_it():
     qpos, qvel = bundledyn.state_to_mujoco(system, end, qpos0=model.qpos0)
     np.testing.assert_allclose(same_quaternions(model, data.qpos, qpos), data.qpos, atol=1e-9)
     np.testing.assert_allclose(qvel, data.qvel, atol=1e-8)
-
-
-# Gymnasium-style passive joints: damping, springs about springref (one with a reference
-# position), rotor inertia, gravity, and a fixed tendon that only couples joint ranges.
-PASSIVE = """<mujoco><option gravity="0 -2 -9.81" integrator="RK4" timestep="1e-4"/>
-<default><joint armature="0.2" damping="0.3"/></default><worldbody><body name="torso">
-<freejoint/><inertial pos="0.01 0 0" mass="2" diaginertia="0.1 0.2 0.3"/>
-<body name="a" pos="0.3 0 0"><joint name="j1" type="hinge" axis="0 0 1" stiffness="4"
- springref="0.3"/><inertial pos="0.1 0 0" mass="0.5" diaginertia="0.01 0.02 0.02"/>
-<body name="b" pos="0.3 0 0"><joint name="j2" type="hinge" axis="0 1 0" ref="0.2"
- stiffness="2" springref="-0.1"/><joint name="j3" type="slide" axis="1 0 0" stiffness="20"/>
-<inertial pos="0.1 0 0.02" mass="0.4" diaginertia="0.01 0.02 0.03"/></body></body>
-<body name="c" pos="-0.3 0 0"><joint name="j4" type="hinge" axis="1 0 0" damping="0"/>
-<inertial pos="-0.1 0 0" mass="0.5" diaginertia="0.01 0.02 0.02"/></body>
-</body></worldbody><tendon><fixed name="couple" limited="true" range="-1 1">
-<joint joint="j1" coef="1"/><joint joint="j4" coef="1"/></fixed></tendon></mujoco>"""
 
 
 def test_the_models_scene_moves_as_mujoco_moves_it_with_its_passive_forces_and_gravity():
