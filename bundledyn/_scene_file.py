@@ -290,9 +290,11 @@ def _system(t: _Table, folder):
         system, solid = _rigid_body(t)
         built = system, (None if solid is None else (solid,)), ()
     elif kind == "multibody":
-        built = (*_multibody(t), ())
+        system, solids = _multibody(t)
+        built = system, solids, ()
     elif kind == "affine_body":
-        built = (*_affine_body(t), ())
+        system, solids = _affine_body(t)
+        built = system, solids, ()
     else:
         built = _model(t, kind, folder)
     t.done()
