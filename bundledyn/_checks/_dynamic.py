@@ -63,6 +63,7 @@ def boost_discrepancy(
     velocity: Float[Array, "3"],
     t1,
     *,
+    effects=(),
     points: int = 11,
     **options,
 ) -> Discrepancy:
@@ -80,6 +81,7 @@ def boost_discrepancy(
 
     - `system`: any system; `state`: the initial state seen from $\mathcal R'$.
     - `velocity`: $u$, `(3,)`; `t1`: the duration.
+    - `effects`: effects acting in both frames (e.g. a model's joint springs and dampers).
     - `points`: number of equally spaced times compared (static).
     - `options`: passed to `simulate` (`solver`, `rtol`, `atol`, `max_steps`, ...).
 
@@ -92,12 +94,19 @@ def boost_discrepancy(
     xi_true = state.xi + lie.Ad(lie.se3_inv(state.g)) @ boost
     seen_from_R = State(state.g, state.q, xi_true, state.qdot)
     ts = _saved_times(t1, points)
-    scene = Scene(system)
+    scene = Scene(system, effects)
     return _discrepancy(scene, scene, (state, seen_from_R), Boosted(velocity), ts, options)
 
 
 def gravity_discrepancy(
-    system: AbstractSystem, gravity: Gravity, state: State, t1, *, points: int = 11, **options
+    system: AbstractSystem,
+    gravity: Gravity,
+    state: State,
+    t1,
+    *,
+    effects=(),
+    points: int = 11,
+    **options,
 ) -> Discrepancy:
     r"""Theorem 3.4 by simulation: the motion under `gravity` seen from a freely falling frame against the motion without gravity.
 
@@ -110,7 +119,7 @@ def gravity_discrepancy(
     **Arguments:**
 
     - `system`: any system; `gravity`: a `Gravity` effect; `state`: the initial state.
-    - `t1`, `points`, `options`: as in `boost_discrepancy`.
+    - `t1`, `effects`, `points`, `options`: as in `boost_discrepancy`.
 
     **Returns:**
 
@@ -120,5 +129,7 @@ def gravity_discrepancy(
     ts = _saved_times(t1, points)
     # Gravity of strength 0 is no gravity (its forces are exact zeros), in the same structure.
     weightless = eqx.tree_at(lambda e: e.g, gravity, jnp.zeros_like(gravity.g))
-    reference, observed = Scene(system, (weightless,)), Scene(system, (gravity,))
+    effects = tuple(effects)
+    reference = Scene(system, (*effects, weightless))
+    observed = Scene(system, (*effects, gravity))
     return _discrepancy(reference, observed, (state, state), frame, ts, options)
