@@ -10,6 +10,7 @@ independently of the library's own list.
 import functools
 
 import diffrax
+import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -157,6 +158,36 @@ def _tumbling(body, xi0, noise_level, t1=10.0, rate=50, seed=1, inertia0=None, *
     inertia0 = 0.4 * jnp.eye(3) if inertia0 is None else inertia0
     parameters = identify.Parameters(bd.Scene(bd.RigidBody(body.mass, jnp.zeros(3), inertia0)))
     return identify.fit(parameters, data, gauge=identify.KnownMass(float(body.mass)), **options)
+
+
+def test_rotor_inertia_and_damping_are_positive_parameters_of_the_scene():
+    """`joint_constants=("damping", "armature")` appends their logarithms to θ; `to_scene`
+    puts them back where they act (the damper, the metric's shape block), and the kinetic
+    energy's gradient in a log-armature is its closed form ½ aⱼ q̇ⱼ². A rotor inertia of
+    zero has no logarithm: refused with the fix."""
+    armature = jnp.array([0.3, 0.2, 0.1, 0.4])
+    bodies = chain(5).bodies()
+    system = bd.Multibody(bodies[0], [
+        bd.Link(body, bd.Revolute([0.0, np.cos(i), np.sin(i)], [-0.25, 0, 0]), i, np.eye(4))
+        for i, body in enumerate(bodies[1:])
+    ], armature=armature)  # fmt: skip
+    scene = bd.Scene(system, [bd.ShapeDamper(jnp.array([0.5, 0.6, 0.7, 0.8]))])
+    parameters = identify.Parameters(scene, bodies=(), joint_constants=("damping", "armature"))
+    theta = parameters.initial()
+    assert parameters.labels()[-1] == "log armature[3]" and theta.shape == (8,)
+    np.testing.assert_allclose(jnp.exp(theta[4:]), armature, rtol=1e-15)
+    moved = parameters.to_scene(theta.at[1].add(0.1).at[5].add(0.2))
+    np.testing.assert_allclose(moved.effects[0].c[1], 0.6 * np.exp(0.1), rtol=1e-14)
+    np.testing.assert_allclose(moved.system.armature[1], 0.2 * np.exp(0.2), rtol=1e-14)
+    q, xi, qdot = jnp.full(4, 0.2), jnp.array([0.1, -0.2, 0.3, 0.4, 0.0, 0.1]), jnp.arange(1.0, 5)
+
+    def energy(theta):
+        return bd.kinetic_energy(parameters.to_scene(theta).system, q, xi, qdot)
+
+    np.testing.assert_allclose(jax.grad(energy)(theta)[4:], 0.5 * armature * qdot**2, rtol=1e-12)
+    zero = bd.Scene(eqx.tree_at(lambda s: s.armature, system, armature.at[0].set(0.0)))
+    with pytest.raises(ValueError, match="armature must be positive"):
+        identify.Parameters(zero, joint_constants=("armature",))
 
 
 def test_a_tumbling_body_shows_its_axes_and_inertia_ratios_but_not_their_scale():

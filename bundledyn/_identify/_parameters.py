@@ -3,7 +3,8 @@ r"""The fitted parameters of a scene as one vector of unconstrained reals.
 Each free body contributes its log-Cholesky coordinates (ten; seven for a body whose centre
 of mass is fixed at the section origin), so that every vector is a physical system; each
 free joint constant (the stiffness of the scene's `ShapeSpring`, the damping of its
-`ShapeDamper`) contributes its logarithm, so that it stays positive.
+`ShapeDamper`, the rotor inertia of its `Multibody`) contributes its logarithm, so that
+it stays positive.
 """
 
 from typing import cast
@@ -15,7 +16,7 @@ import numpy as np
 from .._effects import ShapeDamper, ShapeSpring
 from .._scene import Scene
 from .._systems._base import AbstractInertialSystem
-from .._systems._multibody import AbstractMultibody
+from .._systems._multibody import AbstractMultibody, Multibody
 from .._systems._pseudo_inertia import (
     inertial_from_pseudo_inertia,
     log_cholesky_from_pseudo_inertia,
@@ -24,7 +25,23 @@ from .._systems._pseudo_inertia import (
 
 __all__ = ["Parameters"]
 
-_JOINT_CONSTANTS = {"stiffness": (ShapeSpring, "stiffness"), "damping": (ShapeDamper, "c")}
+
+def _spring_stiffness(scene: Scene):
+    return scene.effects[_effect_index(scene, ShapeSpring)].stiffness
+
+
+def _damping(scene: Scene):
+    return scene.effects[_effect_index(scene, ShapeDamper)].c
+
+
+def _armature(scene: Scene):
+    if not isinstance(scene.system, Multibody):
+        raise ValueError("only a `Multibody` has a rotor inertia (`armature`) to fit.")
+    return scene.system.armature
+
+
+# Where each joint constant lives in a scene (also the `where` of `eqx.tree_at`).
+_JOINT_CONSTANTS = {"stiffness": _spring_stiffness, "damping": _damping, "armature": _armature}
 _COORDINATES = ("alpha", "d1", "d2", "d3", "s12", "s23", "s13", "t1", "t2", "t3")
 
 
@@ -51,8 +68,9 @@ class Parameters(eqx.Module):
     - `bodies`: the bodies whose inertial parameters are free, by index or name (static;
       default all). The others keep the nominal values.
     - `joint_constants`: which joint constants are free (static): `"stiffness"` (of the
-      scene's first `ShapeSpring`) and `"damping"` (of its first `ShapeDamper`); each must
-      be positive in the nominal scene (a scalar or one value per coordinate).
+      scene's first `ShapeSpring`), `"damping"` (of its first `ShapeDamper`) and
+      `"armature"` (the `Multibody`'s rotor inertia); each must be positive in the nominal
+      scene (a scalar or one value per coordinate).
     """
 
     scene: Scene
@@ -74,9 +92,10 @@ class Parameters(eqx.Module):
                 raise ValueError(f"`bodies` names body {b}; the system has bodies {names}.")
         for name in joint_constants:
             if name not in _JOINT_CONSTANTS:
-                raise ValueError(f"unknown joint constant {name!r}; use 'stiffness' or 'damping'.")
-            kind, field = _JOINT_CONSTANTS[name]
-            value = np.asarray(getattr(scene.effects[_effect_index(scene, kind)], field))
+                raise ValueError(
+                    f"unknown joint constant {name!r}; use 'stiffness', 'damping' or 'armature'."
+                )
+            value = np.asarray(_JOINT_CONSTANTS[name](scene))
             if value.ndim > 1 or not np.all(value > 0):
                 raise ValueError(
                     f"the nominal {name} must be positive, a scalar or one value per "
@@ -101,8 +120,7 @@ class Parameters(eqx.Module):
         return 7 if self.system.fixed_centres else 10
 
     def _constant(self, name):
-        kind, field = _JOINT_CONSTANTS[name]
-        return getattr(self.scene.effects[_effect_index(self.scene, kind)], field)
+        return _JOINT_CONSTANTS[name](self.scene)
 
     def initial(self):
         r"""$\theta$ of the nominal scene, shape `(size,)`."""
@@ -154,10 +172,9 @@ class Parameters(eqx.Module):
         return values
 
     def with_joint_constant(self, scene: Scene, name: str, value) -> Scene:
-        """`scene` with the joint constant `name` (`"stiffness"`, `"damping"`) set to `value`."""
-        kind, field = _JOINT_CONSTANTS[name]
-        index = _effect_index(scene, kind)
-        return eqx.tree_at(lambda s: getattr(s.effects[index], field), scene, value)
+        """`scene` with the joint constant `name` (`"stiffness"`, `"damping"`, `"armature"`)
+        set to `value`."""
+        return eqx.tree_at(_JOINT_CONSTANTS[name], scene, value)
 
     def to_scene(self, theta) -> Scene:
         r"""The scene at $\theta$: the nominal scene with the free parameters replaced."""
