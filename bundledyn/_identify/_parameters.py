@@ -27,11 +27,11 @@ __all__ = ["Parameters"]
 
 
 def _spring_stiffness(scene: Scene):
-    return scene.effects[_effect_index(scene, ShapeSpring)].stiffness
+    return cast(ShapeSpring, scene.effects[_effect_index(scene, ShapeSpring)]).stiffness
 
 
 def _damping(scene: Scene):
-    return scene.effects[_effect_index(scene, ShapeDamper)].c
+    return cast(ShapeDamper, scene.effects[_effect_index(scene, ShapeDamper)]).c
 
 
 def _armature(scene: Scene):
