@@ -72,6 +72,7 @@ from ._systems._joints import (
 )
 from ._systems._link import Link
 from ._systems._metric_jet import AbstractMetricJet, DenseMetricJet
+from ._systems._mujoco_import import FixedTendon, ModelParts, parts_from_mjcf, parts_from_urdf
 from ._systems._mujoco_state import state_from_mujoco, state_to_mujoco
 from ._systems._multibody import AbstractMultibody, Multibody, Resectioned
 from ._systems._rigid_body import RigidBody, spatial_inertia
@@ -111,13 +112,14 @@ __all__ = [
     "curvature_by_holonomy",
     "curvature_from_connection",
     "curvature_term",
+    "DenseMetricJet",
     "driven_shape_acceleration",
     "driven_shape_force",
-    "DenseMetricJet",
     "Ellipsoid",
     "enable_x64",
     "ExternalWrench",
     "Fixed",
+    "FixedTendon",
     "FloatingBase",
     "frame_transport_term",
     "Free",
@@ -143,9 +145,12 @@ __all__ = [
     "locked_velocity",
     "mass_and_centre",
     "metric",
+    "ModelParts",
     "models",
     "MovingFrame",
     "Multibody",
+    "parts_from_mjcf",
+    "parts_from_urdf",
     "Prescribed",
     "PrescribedBase",
     "Prismatic",

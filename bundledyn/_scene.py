@@ -11,7 +11,7 @@ from . import lie
 from ._effects import AbstractEffect, Gravity, Kinematics, ShapeDamper, ShapeSpring
 from ._frames import AbstractFrame
 from ._systems._base import AbstractSystem
-from ._systems._mujoco_import import parts_from_mjcf
+from ._systems._mujoco_import import FixedTendon, ModelParts, parts_from_mjcf, parts_from_urdf
 from ._systems._multibody import Multibody
 
 
@@ -141,16 +141,19 @@ class Scene(eqx.Module):
 
     @classmethod
     def from_mjcf(cls, source, *, section=0, passive: bool = False, gravity: bool = False):
-        r"""The scene of an MJCF model: its tree and, when asked, its joints' springs and
-        dampers and its gravity (MuJoCo's own parser; the `mujoco` extra).
+        r"""The scene of an MJCF model: its tree and, when asked, its springs and dampers and
+        its gravity (MuJoCo's own parser; the `mujoco` extra).
 
         **Arguments:**
 
         - `source`: a path to an MJCF file, an MJCF XML string, or a `mujoco.MjModel`.
         - `section`: the section body, as in `Multibody.from_mjcf`.
-        - `passive`: add the hinges' and slides' `damping` as a `ShapeDamper` and their
-          `stiffness` about `springref` as a `ShapeSpring` (MuJoCo's passive joint forces
-          $-b\,\dot q$ and $-k\,(q - q_{\rm spring})$).
+        - `passive`: add MuJoCo's linear passive forces: the hinges' and slides' `damping`
+          and the fixed tendons' `damping` as one `ShapeDamper` ($-b\,\dot q$ per joint,
+          $-b\,c\,c^T\dot q$ per tendon of length $c^T q + L_0$), the joints' `stiffness`
+          about `springref` as a `ShapeSpring` ($-k\,(q - q_{\rm spring})$) and each
+          tendon's `stiffness` about its `springlength` $L_s$ as a `ShapeSpring` of rank one
+          ($\tfrac12 k\,(c^T q + L_0 - L_s)^2$).
         - `gravity`: add the model's `<option gravity>` as a `Gravity` (none if it is zero).
 
         **Returns:**
@@ -158,11 +161,31 @@ class Scene(eqx.Module):
         A `Scene` of the `Multibody` with those effects (only those with a non-zero value).
         """
         parts = parts_from_mjcf(source, passive=passive)
-        effects = []
-        if passive and np.any(parts.damping):
-            effects.append(ShapeDamper(parts.damping))
-        if passive and np.any(parts.stiffness):
-            effects.append(ShapeSpring(parts.stiffness, parts.spring_rest))
+        return cls._of_model(parts, section=section, passive=passive, gravity=gravity)
+
+    @classmethod
+    def from_urdf(cls, path, *, section=0, passive: bool = False, gravity: bool = False):
+        r"""The scene of a URDF model: its tree and, when asked, its joints' dampers and
+        gravity (MuJoCo's own URDF parser; the `mujoco` extra).
+
+        **Arguments:**
+
+        - `path`: a path to a `.urdf` file.
+        - `section`: the section body, as in `Multibody.from_urdf`.
+        - `passive`: add the joints' `<dynamics damping>` as a `ShapeDamper`.
+        - `gravity`: add standard gravity, $9.81$ m/s² along $-z$ (URDF states none; this
+          is MuJoCo's default).
+
+        **Returns:**
+
+        A `Scene` of the `Multibody` with those effects.
+        """
+        parts = parts_from_urdf(path, passive=passive)
+        return cls._of_model(parts, section=section, passive=passive, gravity=gravity)
+
+    @classmethod
+    def _of_model(cls, parts: ModelParts, *, section, passive: bool, gravity: bool):
+        effects = _passive_effects(parts) if passive else []
         acceleration = np.asarray(parts.model.opt.gravity, dtype=float)
         if gravity and np.any(acceleration):
             size = float(np.linalg.norm(acceleration))
@@ -182,3 +205,29 @@ class Scene(eqx.Module):
             dF, dQ = effect.generalized_force(self.system, kin)
             F, Q = F + dF, Q + dQ
         return F, Q
+
+
+def _passive_effects(parts: ModelParts) -> list[AbstractEffect]:
+    """MuJoCo's linear passive forces of an imported model: one damper (diagonal unless a
+    tendon couples the coordinates), the joints' springs, and one spring per tendon."""
+    effects: list[AbstractEffect] = []
+    damped = [t for t in parts.tendons if t.damping != 0]
+    if damped:
+        c = np.diag(parts.damping) + sum(
+            t.damping * np.outer(t.coefficients, t.coefficients) for t in damped
+        )
+        effects.append(ShapeDamper(c))
+    elif np.any(parts.damping):
+        effects.append(ShapeDamper(parts.damping))
+    if np.any(parts.stiffness):
+        effects.append(ShapeSpring(parts.stiffness, parts.spring_rest))
+    effects += [_tendon_spring(t) for t in parts.tendons if t.stiffness != 0]
+    return effects
+
+
+def _tendon_spring(tendon: FixedTendon) -> ShapeSpring:
+    r"""$\tfrac12 k\,(c^T q + L_0 - L_s)^2$ as $\tfrac12 (q - q_0)^T k\,c\,c^T (q - q_0)$,
+    with the rest shape $q_0 = c\,(L_s - L_0)/|c|^2$ on the tendon's direction."""
+    c = tendon.coefficients
+    rest = c * (tendon.spring_length - tendon.length_at_home) / (c @ c)
+    return ShapeSpring(tendon.stiffness * np.outer(c, c), rest)

@@ -261,8 +261,8 @@ def _affine_body(t: _Table):
 
 
 def _model(t: _Table, kind, folder):
-    """An imported model's system, no solids, and the effects it asks for: an MJCF's joint
-    springs and dampers (`passive = true`) and gravity (`gravity = "model"`)."""
+    """An imported model's system, no solids, and the effects it asks for: its springs and
+    dampers (`passive = true`) and gravity (`gravity = "model"`)."""
     if t.has("path") == t.has("model"):
         raise t.fail("path", "give exactly one of `path` (a file) or `model` (a shipped model).")
     if t.has("model"):
@@ -274,13 +274,11 @@ def _model(t: _Table, kind, folder):
         source = (folder / t.string("path")).resolve()
         if not source.is_file():
             raise t.fail("path", f"no such file: {source}.")
-    if kind == "urdf":
-        with t.building(kind):
-            return Multibody.from_urdf(source), None, ()
     passive = t.boolean("passive", False)
     gravity = t.string("gravity", "none", {"none", "model"}) == "model"
+    build = Scene.from_urdf if kind == "urdf" else Scene.from_mjcf
     with t.building(kind):
-        scene = Scene.from_mjcf(source, passive=passive, gravity=gravity)
+        scene = build(source, passive=passive, gravity=gravity)
     return scene.system, None, tuple(scene.effects)
 
 
@@ -413,9 +411,10 @@ class SceneFile:
       `anchor`), `"spherical"` (`anchor`) or `"fixed"`, its placement in the parent at q = 0
       (`offset`, `rotation` vector), and a rigid body's fields), `"affine_body"` (`mass`,
       `radii` of a solid ellipsoid or `second_moment`), `"mjcf"` or `"urdf"` (`path`
-      relative to the scene file, or `model` = a file in `bundledyn.models`; for MJCF,
-      `passive = true` adds the joints' springs and dampers and `gravity = "model"` the
-      model's gravity, as `Scene.from_mjcf` does).
+      relative to the scene file, or `model` = a file in `bundledyn.models`;
+      `passive = true` adds the model's linear springs and dampers (of joints and fixed
+      tendons) and `gravity = "model"` its gravity, as `Scene.from_mjcf` and
+      `Scene.from_urdf` do).
     - `[[effects]]` `type` = `"gravity"` (`g`, `direction`, `gravitational_mass`,
       `centre_offset`), `"gravity_gradient"` (`mu`, `centre`, `per_body`: `BodywiseGravityGradient`),
       `"shape_spring"` (`stiffness`, `rest`) or `"shape_damper"` (`damping`).

@@ -167,8 +167,10 @@ def picture_size(path):
 
 
 # Gymnasium-style passive joints: damping, springs about springref (one with a reference
-# position), rotor inertia, gravity, and a fixed tendon that only couples joint ranges.
-PASSIVE = """<mujoco><option gravity="0 -2 -9.81" integrator="RK4" timestep="1e-4"/>
+# position), rotor inertia, gravity, a ball joint, a fixed tendon that only couples joint
+# ranges (as in gymnasium's humanoid) and one with a spring and a damper of its own.
+PASSIVE = """<mujoco><compiler angle="radian"/>
+<option gravity="0 -2 -9.81" integrator="RK4" timestep="1e-4"/>
 <default><joint armature="0.2" damping="0.3"/></default><worldbody><body name="torso">
 <freejoint/><inertial pos="0.01 0 0" mass="2" diaginertia="0.1 0.2 0.3"/>
 <body name="a" pos="0.3 0 0"><joint name="j1" type="hinge" axis="0 0 1" stiffness="4"
@@ -177,6 +179,11 @@ PASSIVE = """<mujoco><option gravity="0 -2 -9.81" integrator="RK4" timestep="1e-
  stiffness="2" springref="-0.1"/><joint name="j3" type="slide" axis="1 0 0" stiffness="20"/>
 <inertial pos="0.1 0 0.02" mass="0.4" diaginertia="0.01 0.02 0.03"/></body></body>
 <body name="c" pos="-0.3 0 0"><joint name="j4" type="hinge" axis="1 0 0" damping="0"/>
-<inertial pos="-0.1 0 0" mass="0.5" diaginertia="0.01 0.02 0.02"/></body>
+<inertial pos="-0.1 0 0" mass="0.5" diaginertia="0.01 0.02 0.02"/>
+<body name="d" pos="-0.2 0 0.1"><joint name="shoulder" type="ball" armature="0" damping="0"/>
+<inertial pos="-0.1 0 0" mass="0.3" diaginertia="0.01 0.015 0.02"/></body></body>
 </body></worldbody><tendon><fixed name="couple" limited="true" range="-1 1">
-<joint joint="j1" coef="1"/><joint joint="j4" coef="1"/></fixed></tendon></mujoco>"""
+<joint joint="j1" coef="1"/><joint joint="j4" coef="1"/></fixed>
+<fixed name="sinew" stiffness="3" damping="0.4" springlength="0.1">
+<joint joint="j2" coef="0.5"/><joint joint="j3" coef="-1"/><joint joint="j4" coef="0.7"/>
+</fixed></tendon></mujoco>"""

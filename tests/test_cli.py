@@ -147,7 +147,7 @@ def test_run_and_check_a_model_with_passive_joints_and_its_gravity(tmp_path, cap
     printed = capsys.readouterr().out
     assert "PASSED" in printed and "FAILED" not in printed
     effects = [type(e).__name__ for e in bd.SceneFile.load(scene).scene.effects]
-    assert effects == ["ShapeDamper", "ShapeSpring", "Gravity"]
+    assert effects == ["ShapeDamper", "ShapeSpring", "ShapeSpring", "Gravity"]
 
 
 def test_console_script_is_installed_as_a_module():

@@ -130,22 +130,24 @@ def test_gravity_disappears_in_a_falling_frame_unless_the_centres_or_masses_diff
 
 
 def test_an_imported_model_with_passive_joints_is_galilean_and_falls_with_its_gravity():
-    """A gymnasium-style MJCF (rotor inertia, joint springs and dampers, its own gravity):
+    """A gymnasium-style MJCF (rotor inertia, joint springs and dampers, a tendon's spring
+    and damper, a ball joint, its own gravity):
     its motion is the same seen from a frame boosted by 3 m/s, and from a frame falling
     with the model's gravity it moves as without gravity (Theorems 2.2 and 3.4)."""
     from systems import PASSIVE
 
     with pytest.warns(UserWarning, match="tendon"):
         scene = bd.Scene.from_mjcf(PASSIVE, passive=True, gravity=True)
-    passive, gravity = tuple(scene.effects[:2]), scene.effects[2]
+    *passive, gravity = scene.effects
+    assert isinstance(gravity, bd.Gravity) and len(passive) == 3
     state = _generic_state(scene.system.shape_dim)
     options = dict(rtol=RTOL, atol=ATOL, solver=bd.RKMK54())
     velocity = jnp.array([3.0, -1.0, 0.5])
     boosted = bd.checks.boost_discrepancy(
-        scene.system, state, velocity, 1.0, effects=passive, **options
+        scene.system, state, velocity, 1.0, effects=tuple(passive), **options
     )
     falling = bd.checks.gravity_discrepancy(
-        scene.system, gravity, state, 1.0, effects=passive, **options
+        scene.system, gravity, state, 1.0, effects=tuple(passive), **options
     )
     for result in (boosted, falling):
         assert jnp.max(result.shape) <= 1e-9 and jnp.max(result.pose) <= 1e-9

@@ -164,6 +164,15 @@ def test_multibody_by_names_and_placements(tmp_path):
     )
 
 
+def test_a_urdf_model_takes_standard_gravity(tmp_path):
+    """`gravity = "model"` on a URDF is MuJoCo's default gravity (URDF states none)."""
+    text = '[system]\ntype = "urdf"\nmodel = "arm.urdf"\ngravity = "model"\n[time]\nt1 = 1.0\n'
+    path = _write(tmp_path, text)
+    with pytest.warns(UserWarning, match="ignored"):
+        (gravity,) = bd.SceneFile.load(path).scene.effects
+    np.testing.assert_allclose(gravity.g * gravity.direction, [0.0, 0.0, -9.81], rtol=1e-15)
+
+
 def test_load_system_reads_models_and_scenes(tmp_path):
     assert bd.load_system(bd.models / "chain5.xml").shape_dim == 9
     assert bd.load_system(bd.models / "arm.urdf").num_bodies >= 2

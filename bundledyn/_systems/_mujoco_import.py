@@ -30,17 +30,23 @@ resolves it) and build a `Multibody`:
 
 Not supported (`ValueError` naming the element and the fix): several bodies under the
 worldbody, a joint other than a free joint on the root, free joints below the root
-(MuJoCo itself rejects those), equality constraints, tendons, bodies without mass that
-carry joints, and a root body without mass.
+(MuJoCo itself rejects those), equality constraints, spatial tendons, the armature of
+tendons, bodies without mass that carry joints, and a root body without mass; when the
+passive forces are asked for, also nonlinear or plastic springs and dampers (MuJoCo's
+polynomial `stiffness`/`damping` terms, `springyield`) and tendon springs with a dead
+band (two `springlength` values).
 
 Kept: the armature (rotor inertia) of hinges and slides, which MuJoCo adds to its mass
-matrix, as the `Multibody`'s `armature`.
+matrix, as the `Multibody`'s `armature`; when asked (`passive=True`), the linear passive
+forces: the hinges' and slides' `damping`, their `stiffness` about `springref`, and the
+`stiffness` and `damping` of fixed tendons, whose length $L = \sum_k c_k\,$`qpos`$_k$
+is a linear function of the shape coordinates (`FixedTendon`).
 
 Ignored, with one warning listing what the model had: contacts (geoms with a non-zero
-`contype`/`conaffinity`), actuators, sensors, joint limits, joint stiffness, damping,
-friction loss, the armature of ball and free joints, gravity compensation, fluid forces
-and flexes. Gravity
-(`option/gravity`) is not imported either: it is an effect of the scene.
+`contype`/`conaffinity`), actuators, sensors, joint and tendon limits, fixed tendons
+without a spring or damper, joint and tendon friction loss, the armature, damping and
+stiffness of ball and free joints, gravity compensation, fluid forces and flexes; and,
+unless asked for, the passive forces. Gravity (`option/gravity`) is an effect of the scene (`Scene.from_mjcf`).
 
 The state converters are in `_mujoco_state.py`.
 """
@@ -57,13 +63,37 @@ from ._joints import Composite, Fixed, Prismatic, Revolute, Spherical, Universal
 from ._link import Link
 from ._rigid_body import RigidBody
 
-__all__ = ["ModelParts", "parts_from_mjcf", "parts_from_mjmodel", "parts_from_urdf"]
+__all__ = [
+    "FixedTendon",
+    "ModelParts",
+    "parts_from_mjcf",
+    "parts_from_mjmodel",
+    "parts_from_urdf",
+]
 
 # MuJoCo's mjtJoint values.
 _FREE, _BALL, _SLIDE, _HINGE = 0, 1, 2, 3
 _WRAP_JOINT = 1  # mjtWrap.mjWRAP_JOINT: a fixed tendon's joint term
 _JOINT_NAMES = {_FREE: "free", _BALL: "ball", _SLIDE: "slide", _HINGE: "hinge"}
 _MINVAL = 1e-15  # mjMINVAL: MuJoCo's threshold for "no mass"
+
+
+class FixedTendon(NamedTuple):
+    r"""A fixed tendon with a spring or a damper: its length is linear in the shape,
+    $L(q) = c^T q + L_0$, and MuJoCo's passive force $-k\,(L - L_s) - b\,\dot L$ acts
+    along it, i.e. the generalized force $-c\,(k\,(L - L_s) + b\,c^T\dot q)$.
+
+    **Fields:** `name`, `coefficients` ($c$, one per shape coordinate: MuJoCo's `coef`
+    of each joint, zero elsewhere), `length_at_home` ($L_0$, the length at $q = 0$,
+    i.e. at `qpos0`), `stiffness` ($k$), `damping` ($b$) and `spring_length` ($L_s$).
+    """
+
+    name: str
+    coefficients: np.ndarray
+    length_at_home: float
+    stiffness: float
+    damping: float
+    spring_length: float
 
 
 class ModelParts(NamedTuple):
@@ -73,8 +103,9 @@ class ModelParts(NamedTuple):
     order), `names` (the bodies' MuJoCo names, base first), `model` (the compiled
     `mujoco.MjModel` they were read from), per shape coordinate the hinges' and slides'
     `armature` (rotor inertia), `damping`, `stiffness` and `spring_rest` (`springref` as a
-    shape coordinate, $q = $ `qpos - qpos0`), zero for a ball joint's coordinates, and
-    `ignored` (what the import left out, as the warning lists it).
+    shape coordinate, $q = $ `qpos - qpos0`), zero for a ball joint's coordinates, the
+    `tendons` with a spring or a damper (`FixedTendon`), and `ignored` (what the import
+    left out, as the warning lists it).
     """
 
     base: RigidBody
@@ -85,6 +116,7 @@ class ModelParts(NamedTuple):
     damping: np.ndarray
     stiffness: np.ndarray
     spring_rest: np.ndarray
+    tendons: tuple[FixedTendon, ...]
     ignored: tuple[str, ...]
 
 
@@ -149,7 +181,7 @@ def _compile(mujoco, source):
         raise ValueError(f"MuJoCo could not compile {what}: {e}") from e
 
 
-def parts_from_urdf(path) -> ModelParts:
+def parts_from_urdf(path, *, passive: bool = False) -> ModelParts:
     """The parts of the tree of a URDF model, compiled by MuJoCo's own URDF parser.
 
     The root link becomes the floating base: it is given a free joint before compiling
@@ -158,18 +190,20 @@ def parts_from_urdf(path) -> ModelParts:
     free joint's 7/6 entries like an MJCF model with a free root. MuJoCo fuses links
     attached by `fixed` joints into their parents by default (`fusestatic`, the URDF
     default): they are not separate bodies, their inertia is added to the parent's.
-    Joint `limit`s, `dynamics` and collision geometry are ignored (with a warning), as for
-    MJCF.
+    Joint `limit`s and collision geometry are ignored (with a warning), as for MJCF; a
+    joint's `<dynamics damping>` is MuJoCo's joint damping (kept with `passive`), its
+    `friction` MuJoCo's friction loss (ignored).
 
     **Arguments:**
 
     - `path`: path to a `.urdf` file (meshes are resolved relative to it by MuJoCo).
+    - `passive`: whether the joints' dampers will be used (not warned about).
 
     **Returns:**
 
     The `ModelParts`.
     """
-    return parts_from_mjmodel(_compile_urdf(_import_mujoco(), path))
+    return parts_from_mjmodel(_compile_urdf(_import_mujoco(), path), passive=passive)
 
 
 def _compile_urdf(mujoco, path):
@@ -248,7 +282,7 @@ def _body_joint(model, b, joints):
     return Composite([_single_joint(model, j) for j in joints])
 
 
-def _check_unsupported(model):
+def _check_unsupported(model, passive: bool):
     if model.neq > 0:
         names = ", ".join(f"'{_name(model, 'equality', i)}'" for i in range(model.neq))
         raise ValueError(
@@ -256,14 +290,22 @@ def _check_unsupported(model):
             "Multibody is a tree without closed loops or welds. Remove the <equality> "
             "elements (model a weld by putting the bodies in one body, a loop by cutting it)."
         )
-    passive_or_spatial = [i for i in range(model.ntendon) if not _plain_fixed_tendon(model, i)]
-    if passive_or_spatial:
-        names = ", ".join(f"'{_name(model, 'tendon', i)}'" for i in passive_or_spatial)
+    spatial = [i for i in range(model.ntendon) if not _fixed_tendon(model, i)]
+    if spatial:
         raise ValueError(
-            f"the model has tendon(s) {names} that are spatial or carry a spring or damper; "
-            "bundledyn supports only fixed tendons without passive forces (ignored, like "
-            "joint limits). Remove those <tendon> elements and whatever refers to them."
+            f"the model has spatial tendon(s) {_names(model, 'tendon', spatial)}; bundledyn "
+            "maps fixed tendons only (lengths that are linear combinations of joint "
+            "coordinates). Remove those <spatial> elements and whatever refers to them."
         )
+    rotors = np.flatnonzero(np.asarray(model.tendon_armature))
+    if rotors.size:
+        raise ValueError(
+            f"tendon(s) {_names(model, 'tendon', rotors)} have an armature (inertia along the "
+            "tendon); bundledyn's rotor inertia is per joint coordinate. Set the tendons' "
+            "armature to 0, or put it on their joints if it belongs to them."
+        )
+    if passive:
+        _check_linear_passive_forces(model)
     roots = [b for b in range(1, model.nbody) if model.body_parentid[b] == 0]
     if not roots:
         raise ValueError("the model has no body under the worldbody: nothing to import.")
@@ -296,12 +338,72 @@ def _check_unsupported(model):
     return root
 
 
-def _plain_fixed_tendon(model, i) -> bool:
-    """Whether tendon `i` is a fixed tendon (a combination of joint coordinates) with no
-    stiffness or damping: then it only couples joint limits, and ignoring it changes no motion."""
-    wraps = range(int(model.tendon_adr[i]), int(model.tendon_adr[i]) + int(model.tendon_num[i]))
-    fixed = all(int(model.wrap_type[w]) == _WRAP_JOINT for w in wraps)
-    return fixed and model.tendon_stiffness[i] == 0 and model.tendon_damping[i] == 0
+def _names(model, kind, indices):
+    return ", ".join(f"'{_name(model, kind, int(i))}'" for i in indices)
+
+
+def _wraps(model, i):
+    return range(int(model.tendon_adr[i]), int(model.tendon_adr[i]) + int(model.tendon_num[i]))
+
+
+def _fixed_tendon(model, i) -> bool:
+    """Whether tendon `i` is fixed: its length a linear combination of joint coordinates."""
+    return all(int(model.wrap_type[w]) == _WRAP_JOINT for w in _wraps(model, i))
+
+
+def _tendon_is_passive(model, i) -> bool:
+    return model.tendon_stiffness[i] != 0 or model.tendon_damping[i] != 0
+
+
+def _check_linear_passive_forces(model):
+    """Refuse the passive forces that a `ShapeSpring`/`ShapeDamper` would get wrong."""
+
+    def rows(field):
+        return np.any(np.atleast_2d(np.asarray(getattr(model, field))) != 0, axis=1)
+
+    dof_joint = np.asarray(model.dof_jntid)
+    joints = rows("jnt_stiffnesspoly") | (np.asarray(model.jnt_springyield) != 0)
+    joints[dof_joint[rows("dof_dampingpoly")]] = True
+    spring = np.asarray(model.tendon_lengthspring).reshape(-1, 2)
+    dead_band = (np.asarray(model.tendon_stiffness) != 0) & (spring[:, 0] != spring[:, 1])
+    tendons = rows("tendon_stiffnesspoly") | rows("tendon_dampingpoly") | dead_band
+    tendons |= np.asarray(model.tendon_springyield) != 0
+    offenders = [
+        f"{kind}(s) {_names(model, kind, np.flatnonzero(mask))}"
+        for kind, mask in (("joint", joints), ("tendon", tendons))
+        if mask.any()
+    ]
+    if offenders:
+        raise ValueError(
+            " and ".join(offenders) + " have nonlinear or plastic passive forces (MuJoCo's "
+            "polynomial `stiffness`/`damping` terms, `springyield`, or a tendon spring with "
+            "a dead band, two `springlength` values); bundledyn maps linear springs and "
+            "dampers. Remove those terms, or import without `passive=True` and add them to "
+            "the scene as a `ShapePotential` or `ShapeForce`."
+        )
+
+
+def _fixed_tendons(model, coordinate: dict[int, int], d: int) -> tuple[FixedTendon, ...]:
+    """The fixed tendons with a spring or a damper, on the shape coordinates `coordinate[j]`
+    of the model's hinges and slides ($q = $ `qpos - qpos0`)."""
+    tendons = []
+    for i in filter(lambda i: _tendon_is_passive(model, i), range(model.ntendon)):
+        coefficients, length_at_home = np.zeros(d), 0.0
+        for w in _wraps(model, i):
+            j, coef = int(model.wrap_objid[w]), float(model.wrap_prm[w])
+            coefficients[coordinate[j]] += coef
+            length_at_home += coef * float(model.qpos0[model.jnt_qposadr[j]])
+        tendons.append(
+            FixedTendon(
+                _name(model, "tendon", i),
+                coefficients,
+                length_at_home,
+                float(model.tendon_stiffness[i]),
+                float(model.tendon_damping[i]),
+                float(np.ravel(model.tendon_lengthspring[i])[0]),
+            )  # fmt: skip
+        )
+    return tuple(tendons)
 
 
 def _ignored_elements(model, passive: bool):
@@ -321,9 +423,19 @@ def _ignored_elements(model, passive: bool):
             ignored.append(f"{what} of joint(s) {names}")
 
     joints_where(np.asarray(model.jnt_limited, bool), "limits")
-    if model.ntendon:
-        names = ", ".join(f"'{_name(model, 'tendon', i)}'" for i in range(model.ntendon))
-        ignored.append(f"fixed tendon(s) {names} (no passive force: their limits only)")
+    passive_tendons = [_tendon_is_passive(model, i) for i in range(model.ntendon)]
+    plain = [i for i, kept in enumerate(passive_tendons) if not kept]
+    if plain:
+        ignored.append(
+            f"fixed tendon(s) {_names(model, 'tendon', plain)} (no passive force: "
+            "their limits only)"
+        )
+    unused = [i for i, kept in enumerate(passive_tendons) if kept and not passive]
+    if unused:
+        ignored.append(f"springs and dampers of fixed tendon(s) {_names(model, 'tendon', unused)}")
+    friction = np.flatnonzero(np.asarray(model.tendon_frictionloss))
+    if friction.size:
+        ignored.append(f"friction loss of tendon(s) {_names(model, 'tendon', friction)}")
     dof_joint = np.asarray(model.dof_jntid)
     screw = np.isin(np.asarray(model.jnt_type), (_HINGE, _SLIDE))
 
@@ -361,7 +473,7 @@ def parts_from_mjmodel(model, *, passive: bool = False) -> ModelParts:
 
     The `ModelParts`.
     """
-    root = _check_unsupported(model)
+    root = _check_unsupported(model, passive)
 
     def rigid_body(b):
         name = _name(model, "body", b)
@@ -385,6 +497,7 @@ def parts_from_mjmodel(model, *, passive: bool = False) -> ModelParts:
     links = []
     refs = []
     armature, damping, stiffness, rest = [], [], [], []
+    coordinate = {}  # hinge or slide joint -> its shape coordinate
     for b in range(root + 1, model.nbody):
         p = int(model.body_parentid[b])
         local = _pose_np(model.body_pos[b], model.body_quat[b])
@@ -414,6 +527,7 @@ def parts_from_mjmodel(model, *, passive: bool = False) -> ModelParts:
                     values += [0.0, 0.0, 0.0]
                 continue
             address = int(model.jnt_qposadr[j])
+            coordinate[j] = len(armature)
             armature.append(float(model.dof_armature[dof]))
             damping.append(float(model.dof_damping[dof]))
             stiffness.append(float(model.jnt_stiffness[j]))
@@ -426,9 +540,9 @@ def parts_from_mjmodel(model, *, passive: bool = False) -> ModelParts:
     ignored = _ignored_elements(model, passive)
     if ignored:
         warnings.warn(
-            "bundledyn's Multibody keeps the kinematic tree, the inertias and the rotor "
-            "inertia of hinges and slides only; ignored "
-            "from the MuJoCo model: " + "; ".join(ignored) + ".",
+            "bundledyn keeps the kinematic tree, the inertias, the rotor inertia of hinges "
+            "and slides and, when asked, the linear springs and dampers of joints and fixed "
+            "tendons; ignored from the MuJoCo model: " + "; ".join(ignored) + ".",
             stacklevel=4,
         )
     if refs:
@@ -442,5 +556,5 @@ def parts_from_mjmodel(model, *, passive: bool = False) -> ModelParts:
         base, tuple(links), tuple(names), model,
         armature=np.array(armature, dtype=float), damping=np.array(damping, dtype=float),
         stiffness=np.array(stiffness, dtype=float), spring_rest=np.array(rest, dtype=float),
-        ignored=tuple(ignored),
+        tendons=_fixed_tendons(model, coordinate, len(armature)), ignored=tuple(ignored),
     )  # fmt: skip
