@@ -33,6 +33,7 @@ from ._geometry import connection, locked_velocity
 from ._linalg import dot, matmul
 from ._scene import Prescribed, PrescribedBase, Scene
 from ._state import State
+from ._systems._ball_chart import ball_columns, recharted_shape
 
 __all__ = [
     "AbstractBodyTerm",
@@ -177,6 +178,27 @@ class SceneTerm(AbstractBodyTerm):
 
     def contr(self, t0, t1, **kwargs):
         return t1 - t0
+
+    def recharted(self, t, y):
+        r"""`y` with every ball joint's rotation vector in $|\varphi| \le \pi$: the same state
+        in the coordinates where the Lie-group solvers step best (`recharted_shape`; the
+        chart degenerates at $|\varphi| = 2\pi$). `y` itself when nothing is recharted.
+
+        **Arguments:**
+
+        - `t`: the time of `y`.
+        - `y`: the integration state $(g, x)$.
+
+        **Returns:**
+
+        The integration state in the recharted coordinates.
+        """
+        scene = self.scene
+        if ball_columns(scene.system).size == 0 or isinstance(scene.shape, Prescribed):
+            return y
+        _, q, U, qdot = self.unpack(t, y)
+        q, qdot = recharted_shape(scene.system, q, qdot)
+        return self.pack(y[0], q, U, qdot)
 
     def prod(self, vf, control):
         return jtu.tree_map(lambda v: control * v, vf)

@@ -12,9 +12,9 @@ import jax.tree_util as jtu
 
 from .. import lie
 from .._linalg import dot
-from .._term import AbstractBodyTerm, split, twist_of_tangent
+from .._term import AbstractBodyTerm, SceneTerm, split, twist_of_tangent
 
-__all__ = ["body_field", "from_chart"]
+__all__ = ["body_field", "from_chart", "recharted"]
 
 
 def from_chart(g0, rest0, treedef, omega, deltas):
@@ -41,3 +41,15 @@ def body_field(terms, t, y, args, control=1.0):
     g, _, treedef = split(y)
     gdot, *rest = jtu.tree_leaves(terms.prod(terms.vf(t, y, args), control))
     return jtu.tree_unflatten(treedef, [twist_of_tangent(g, gdot), *rest])
+
+
+def recharted(terms, t, y):
+    r"""`y` in the coordinates its scene steps best in (`SceneTerm.recharted`: ball joints'
+    rotation vectors back in $|\varphi| \le \pi$), the term looked for as `body_field`
+    looks for it; `y` itself for any other term."""
+    if isinstance(terms, SceneTerm):
+        return terms.recharted(t, y)
+    inner, direction = getattr(terms, "term", None), getattr(terms, "direction", None)
+    if isinstance(inner, SceneTerm) and direction is not None:
+        return inner.recharted(t * direction, y)
+    return y

@@ -36,7 +36,7 @@ from .. import lie
 from .._linalg import dot
 from .._term import split
 from ._base import AbstractLieGroupSolver
-from ._chart import body_field, from_chart
+from ._chart import body_field, from_chart, recharted
 from ._interpolation import LieLocalInterpolation
 from ._tableau import LieButcherTableau, dopri5_tableau, dopri8_tableau, rk4_tableau
 
@@ -104,6 +104,7 @@ class AbstractRKMK(AbstractLieGroupSolver):
         return terms.vf(t0, y0, args)
 
     def step(self, terms, t0, t1, y0, args, solver_state, made_jump):
+        y0 = recharted(terms, t0, y0)
         tab = self.tableau
         s = tab.num_stages
         g0, rest0, treedef = split(y0)

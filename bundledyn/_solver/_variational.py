@@ -78,6 +78,7 @@ class VariationalMidpoint(AbstractLieGroupSolver):
 
     def step(self, terms, t0, t1, y0, args, solver_state, made_jump):
         term = _scene_term(terms)
+        y0 = term.recharted(t0, y0)
         scene, system = term.scene, term.scene.system
         d = system.shape_dim
         h = t1 - t0

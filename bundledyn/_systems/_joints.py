@@ -122,8 +122,11 @@ class Spherical(AbstractJoint):
     The child's rotation relative to its home placement is $\exp(\tilde\varphi)$ and its body
     angular velocity is $\omega = \operatorname{dexp}(\varphi)\dot\varphi$ (left-trivialized
     dexp, the right Jacobian of SO(3)). No gimbal lock: the chart is singular only at
-    $|\varphi| = 2\pi$, a full turn away from home. (MuJoCo stores a ball joint as a
-    quaternion; the converters of `Multibody` map between the two.)
+    $|\varphi| = 2\pi$, a full turn away from home, and the Lie-group solvers move every
+    ball joint back to $|\varphi| \le \pi$ at the start of each step (`SceneTerm.recharted`:
+    the same rotation and angular velocity), so a joint turns any number of times.
+    (MuJoCo stores a ball joint as a quaternion; the converters of `Multibody` map
+    between the two.)
     """
 
     anchor: Float[Array, "3"]
