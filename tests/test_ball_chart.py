@@ -62,9 +62,8 @@ def test_recharting_has_finite_correct_derivatives(theta):
         return jnp.concatenate([q2, qdot2])
 
     x = jnp.concatenate([q, qdot])
-    J_rev, J_fwd = jax.jacrev(f)(x), jax.jacfwd(f)(x)
+    J_rev = jax.jacrev(f)(x)
     assert np.all(np.isfinite(J_rev))
-    np.testing.assert_allclose(J_rev, J_fwd, atol=1e-13)
     if theta == 0.0:
         np.testing.assert_allclose(J_rev, np.eye(8), atol=1e-15)
     else:
@@ -101,26 +100,6 @@ def test_a_ball_joint_turns_twenty_times_as_mujoco_turns_it():
 def _wheel_start(system, spin, side=1e-5):
     qvel = jnp.array([0.1, -0.2, 0.05, 0.02, 0.01, -0.03, side * spin, 0.0, spin])
     return bd.state_from_mujoco(system, jnp.array([0, 0, 0, 1, 0, 0, 0, 1, 0, 0, 0.0]), qvel)
-
-
-def test_a_rollout_through_the_chart_switch_has_the_gradient_of_central_differences():
-    """Through two turns (the chart switches at every |φ| = π), the derivative of the
-    wheel's final attitude with respect to its spin is that of central differences (fixed
-    steps, so that the step sequence does not move with the spin)."""
-    import diffrax
-
-    system = bd.Multibody.from_mjcf(WHEEL)
-    steps = dict(solver=bd.RKMK4(), dt0=5e-3, stepsize_controller=diffrax.ConstantStepSize())
-
-    def attitude(spin):
-        traj = bd.simulate(bd.Scene(system), _wheel_start(system, spin), 1.0, **steps)
-        return jnp.sum(system.body_poses(traj.q[-1])[1, :3, :3] * jnp.arange(9.0).reshape(3, 3))
-
-    slope = jax.jit(jax.grad(attitude))(4 * np.pi)
-    h, value = 1e-5, jax.jit(attitude)
-    fd = (value(4 * np.pi + h) - value(4 * np.pi - h)) / (2 * h)
-    assert abs(float(slope)) > 0.1
-    np.testing.assert_allclose(slope, fd, rtol=1e-7)
 
 
 def test_the_variational_integrator_keeps_momentum_through_the_chart_switches():
