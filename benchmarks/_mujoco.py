@@ -30,3 +30,23 @@ def final_state(model, system, states) -> bd.State:
     """bundledyn's state at the end of the first rollout of `mujoco.rollout`'s `states`."""
     qpos, qvel = qpos_qvel(model, states[0, -1])
     return bd.state_from_mujoco(system, qpos, qvel, qpos0=model.qpos0)
+
+
+def rollout_final_state(model, t1, system, state: bd.State):
+    """MuJoCo's rollout (`mujoco.rollout`, its C loop at `model`'s integrator and step) from
+    bundledyn's `state` of `system` to `t1`: `(final state in bundledyn's variables, a
+    sampler of the rollout)`."""
+    from mujoco import rollout
+
+    data, initial = physics_state(model, system, state)
+    nstep = round(t1 / model.opt.timestep)
+
+    def run():
+        return rollout.rollout(model, data, initial[None], nstep=nstep)[0]
+
+    final = final_state(model, system, run())
+
+    def sample():
+        run()
+
+    return final, sample

@@ -144,3 +144,39 @@ def test_identification_report_redraws_from_its_json(tmp_path):
     assert report["provenance"]["commit"] and f"`{report['provenance']['commit'][:12]}`" in text
     assert set(report["cases"]) == {"chain", "arm", "tumble"}
     assert all(set(c["summary"]) == {"0", "0.001", "0.01"} for c in report["cases"].values())
+
+
+@pytest.mark.parametrize("index", [0, 3, 5, "humanoid"])
+def test_family_members_are_one_system_in_both_simulators(index):
+    """Each kind of member (hinge, ball and composite trees, the humanoid) is the same
+    mechanical system in bundledyn and MuJoCo: the kinetic energy at its tumbling start
+    equals MuJoCo's ½ qvelᵀ M qvel to 1e-12."""
+    mujoco = pytest.importorskip("mujoco")
+    import bundledyn as bd
+    from benchmarks.family.measure import member_scene
+    from benchmarks.family.members import initial_qpos_qvel, members, mujoco_model
+
+    family = members(quick=False)
+    member = family[-1] if index == "humanoid" else family[2 * index]
+    scene = member_scene(member)
+    model = mujoco_model(member, 1e-2)
+    qpos, qvel = initial_qpos_qvel(model, member.rate, 0)
+    state = bd.state_from_mujoco(scene.system, qpos, qvel, qpos0=model.qpos0)
+    data = mujoco.MjData(model)
+    data.qpos[:], data.qvel[:] = qpos, qvel
+    mujoco.mj_forward(model, data)
+    M = np.zeros((model.nv, model.nv))
+    mujoco.mj_fullM(model, data, M)
+    T_mujoco = 0.5 * qvel @ M @ qvel
+    T = float(bd.kinetic_energy(scene.system, state.q, state.xi, state.qdot))
+    assert abs(T - T_mujoco) <= 1e-12 * T_mujoco
+
+
+def test_family_quick_writes_its_report(tmp_path):
+    from benchmarks import family
+
+    report = family.main(["--quick", "--out", str(tmp_path)])
+    (member,) = report["members"]
+    assert member["ratios"]["coarse"] is not None
+    text = (tmp_path / "family_quick.md").read_text()
+    assert "| one field evaluation / mj_forward |" in text and member["name"] in text

@@ -5,10 +5,10 @@ alternation with MuJoCo's `rollout` and MJX."""
 import time
 
 from benchmarks._errors import setting_at_error, state_error
-from benchmarks._models import chain_scene, initial_state
+from benchmarks._models import chain_scene, initial_state, mujoco_model
+from benchmarks._mujoco import rollout_final_state
 from benchmarks._rollouts import batch_rollouts, with_twist
 from benchmarks._timing import interleaved
-from benchmarks.speed.chain import mujoco_final_state
 from benchmarks.speed.config import BATCH, METHODS, MUJOCO_DT, rollout_fn, simulate_options
 from benchmarks.speed.mujoco_batch import mjx_batch, mjx_calibration, mujoco_batch
 
@@ -43,7 +43,8 @@ def batch_calibration(t1, quick, members=16):
     def largest_error(final_of):
         return max(state_error(final_of(st), ref) for st, ref in zip(states, refs, strict=True))
 
-    mujoco = largest_error(lambda st: mujoco_final_state(5, MUJOCO_DT, t1, scene, st)[0])
+    model = mujoco_model(5, MUJOCO_DT)
+    mujoco = largest_error(lambda st: rollout_final_state(model, t1, scene.system, st)[0])
     # MJX's RK4 on the same rollouts, from MuJoCo's step down to a hundredth of it.
     mjx = mjx_calibration(t1, scene, states, refs, mujoco)
     steps = range(2, 6) if quick else range(3, 16)

@@ -5,29 +5,9 @@ import jax
 
 from benchmarks._errors import state_error
 from benchmarks._models import chain_scene, initial_state, mujoco_model
-from benchmarks._mujoco import final_state, physics_state
+from benchmarks._mujoco import rollout_final_state
 from benchmarks._timing import blocking, interleaved
 from benchmarks.speed.config import FIXED_STEPS, METHODS, MUJOCO_DT, T_CHAIN, rollout_fn
-
-
-def mujoco_final_state(n, dt, t1, scene, state):
-    """MuJoCo RK4 from `state` to `t1` with step `dt`: `(final state in bundledyn's
-    variables, sampler of the rollout)`."""
-    from mujoco import rollout
-
-    model = mujoco_model(n, dt)
-    data, initial = physics_state(model, scene.system, state)
-    nstep = round(t1 / dt)
-
-    def run():
-        return rollout.rollout(model, data, initial[None], nstep=nstep)[0]
-
-    final = final_state(model, scene.system, run())
-
-    def sample():
-        run()
-
-    return final, sample
 
 
 def chain_ten_seconds(repeats, quick):
@@ -52,7 +32,8 @@ def chain_ten_seconds(repeats, quick):
             points[method, setting]["steps"] = int(steps)
             samplers[method, setting] = blocking(run, state, setting)
     for dt in dts:
-        final, samplers["MuJoCo RK4", dt] = mujoco_final_state(5, dt, t1, scene, state)
+        model = mujoco_model(5, dt)
+        final, samplers["MuJoCo RK4", dt] = rollout_final_state(model, t1, scene.system, state)
         points["MuJoCo RK4", dt] = {"setting": dt, "error": state_error(final, ref)}
         points["MuJoCo RK4", dt]["steps"] = round(t1 / dt)
     for key, (_, runs) in interleaved(samplers, repeats).items():

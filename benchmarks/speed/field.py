@@ -9,12 +9,18 @@ from benchmarks._timing import interleaved, loop_sampler
 from benchmarks.speed.config import LOOP_EVALS, MUJOCO_DT
 
 
-def field_sampler(n):
-    """A sampler of seconds per vector-field evaluation of the n-body chain (`loop_sampler`)."""
-    scene = chain_scene(n)
+def scene_field_sampler(scene, state):
+    """A sampler of seconds per evaluation of `scene`'s vector field at `state`
+    (`loop_sampler`)."""
     term = bd.SceneTerm(scene)
-    y = term.encode(0.0, initial_state(scene))
+    y = term.encode(0.0, state)
     return loop_sampler(lambda i, y: term.vf(1e-6 * i, y, None), y, LOOP_EVALS)
+
+
+def field_sampler(n):
+    """A sampler of seconds per vector-field evaluation of the n-body chain."""
+    scene = chain_scene(n)
+    return scene_field_sampler(scene, initial_state(scene))
 
 
 def _mujoco_chain(n):
@@ -26,10 +32,14 @@ def _mujoco_chain(n):
 
 
 def mj_forward_sampler(n, calls=2000):
-    """A sampler of seconds per `mj_forward` (a Python loop over the C call)."""
-    import mujoco
-
+    """A sampler of seconds per `mj_forward` of the n-body chain."""
     model, data, _ = _mujoco_chain(n)
+    return data_forward_sampler(model, data, calls)
+
+
+def data_forward_sampler(model, data, calls=2000):
+    """A sampler of seconds per `mj_forward` at `data` (a Python loop over the C call)."""
+    import mujoco
 
     def sample():
         start = time.perf_counter()

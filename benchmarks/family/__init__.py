@@ -1,0 +1,28 @@
+"""Speed against MuJoCo over a family of models the benchmark was not tuned on.
+
+`python -m benchmarks.speed` measures one chain in depth; this benchmark measures the
+speed targets on every member of a family (`members.py`): eight random free-floating
+trees drawn from seeds (5, 10 and 20 bodies; hinge, ball, composite and mixed joints;
+random axes, masses, sizes and link offsets) and gymnasium's humanoid, each at two
+energies, float64 on the CPU. Per member, timed in alternation in one process:
+
+1. one evaluation of bundledyn's vector field (`bd.SceneTerm.vf` in a compiled loop)
+   against MuJoCo's `mj_forward` at the same state;
+2. 10 s from a tumbling state with bundledyn's default solver (RKMK87, rtol 1e-3 … 1e-12,
+   atol = rtol / 100) and MuJoCo RK4 (`mujoco.rollout`, dt = 1e-2 … 1e-2/32), errors at
+   t1 against RKMK87 at rtol 1e-13; bundledyn's time over MuJoCo's at MuJoCo's error
+   with dt = 1e-2 and at 1e-9, each interpolated log–log on its sweep.
+
+The report gives each target's worst case over the family beside its median, and names
+the member that gave it.
+
+Usage, from the repository root (needs the `bench` extra for MuJoCo)::
+
+    python -m benchmarks.family                # full run; writes results/family.{md,json}
+    python -m benchmarks.family --quick        # one small model, 1 s, to a temporary folder
+    python -m benchmarks.family --report-only  # redraw the markdown from the JSON
+"""
+
+from benchmarks.family.cli import main
+
+__all__ = ["main"]

@@ -1,0 +1,3 @@
+from benchmarks.family.cli import main
+
+main()

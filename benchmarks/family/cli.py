@@ -1,0 +1,69 @@
+"""`python -m benchmarks.family`: the run, `--quick` and `--report-only`."""
+
+import json
+
+from benchmarks import _output
+from benchmarks._provenance import environment, provenance
+
+DESCRIPTION = "Speed against MuJoCo over a family of models the benchmark was not tuned on."
+RTOLS = tuple(10.0**-k for k in range(3, 13))
+DTS = tuple(1e-2 / 2**k for k in range(6))
+
+
+def measure(quick, repeats):
+    """Every member, in order: a list of their measurements. None without MuJoCo."""
+    import bundledyn as bd
+    from benchmarks.family.measure import measure_member
+    from benchmarks.family.members import members
+    from benchmarks.speed.config import PACKAGES
+
+    bd.use_cpu_xla_flags()
+    bd.enable_x64()
+    try:
+        import mujoco  # noqa: F401
+    except ImportError:
+        print("mujoco is not installed (pip install '.[bench]'): nothing to compare against")
+        return None
+    t1 = 1.0 if quick else 10.0
+    rtols, dts = ((1e-4, 1e-8), DTS[:2]) if quick else (RTOLS, DTS)
+    report = {
+        "provenance": provenance(),
+        "environment": environment(PACKAGES),
+        "repeats": repeats,
+        "quick": quick,
+        "t1": t1,
+        "members": [],
+    }
+    for seed, member in enumerate(members(quick)):
+        result = measure_member(member, seed, t1=t1, rtols=rtols, dts=dts, repeats=repeats)
+        report["members"].append(result)
+        r = result["ratios"]
+        solves = " and ".join(
+            "not reached" if x is None else f"{x:.2f}×" for x in (r["coarse"], r["fine"])
+        )
+        print(
+            f"  {member.name}: field {result['field']['ratio']:.2f}× mj_forward; "
+            f"solves {solves} MuJoCo's time",
+            flush=True,
+        )
+    return report
+
+
+def main(argv=None):
+    from benchmarks.family.report import markdown
+
+    parser = _output.parser(DESCRIPTION, "one small model, 1 s, 2 repeats")
+    parser.add_argument("--repeats", type=int, help="timed repeats (default 3; quick 2)")
+    args = parser.parse_args(argv)
+    out = _output.folder(args.out, args.quick, "family", args.report_only)
+    name = _output.stem("family", args.quick)
+    if args.report_only:
+        (out / f"{name}.md").write_text(markdown(json.loads((out / f"{name}.json").read_text())))
+        return 0
+    report = measure(args.quick, args.repeats or (2 if args.quick else 3))
+    if report is None:
+        return 1
+    text = markdown(report)
+    print(text)
+    _output.write(out, name, report, text)
+    return report
