@@ -4,6 +4,19 @@ converters `bd.state_to_mujoco` and `bd.state_from_mujoco`."""
 import bundledyn as bd
 
 
+def float64_cpu_run_with_mujoco() -> bool:
+    """Set up a float64 CPU run with bundledyn's XLA flags; whether MuJoCo is there to
+    compare against (printing how to install it if not)."""
+    bd.use_cpu_xla_flags()
+    bd.enable_x64()
+    try:
+        import mujoco  # noqa: F401
+    except ImportError:
+        print("mujoco is not installed (pip install '.[bench]'): nothing to compare against")
+        return False
+    return True
+
+
 def physics_state(model, system, state: bd.State):
     """`(data, full physics state)`: MuJoCo's `MjData` and `mjSTATE_FULLPHYSICS` vector
     (what `mujoco.rollout` starts from) for bundledyn's `state` of `system`, the same

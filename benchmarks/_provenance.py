@@ -77,3 +77,14 @@ def environment(packages):
         "xla_flags": os.environ.get("XLA_FLAGS", ""),
         "versions": {package: _version(package) for package in packages},
     }
+
+
+def report_header(packages, quick, **fields):
+    """What every results JSON opens with: `provenance`, `environment` (of `packages`),
+    `quick`, then the run's own `fields`."""
+    return {
+        "provenance": provenance(),
+        "environment": environment(packages),
+        "quick": quick,
+        **fields,
+    }

@@ -4,7 +4,7 @@
 import json
 
 from benchmarks import _output
-from benchmarks._provenance import environment, provenance
+from benchmarks._provenance import environment, provenance, report_header
 from benchmarks.accuracy_cost.problems import PROBLEMS
 
 DESCRIPTION = "What accuracy costs in time: work–precision of every solver, with peers."
@@ -99,12 +99,7 @@ def main(argv=None):
         return report
     names = args.problems or (["dzhanibekov"] if args.quick else list(PROBLEMS))
     out.mkdir(parents=True, exist_ok=True)
-    report = {
-        "provenance": provenance(),
-        "environment": environment(PACKAGES),
-        "quick": args.quick,
-        "problems": [],
-    }
+    report = report_header(PACKAGES, args.quick, problems=[])
     for name in names:
         result = measure_problem(name, args.quick, args.repeats)
         result["figure"] = plot(result, out / f"{NAME}_{name}.png")

@@ -3,7 +3,7 @@
 import json
 
 from benchmarks import _output
-from benchmarks._provenance import environment, provenance
+from benchmarks._provenance import report_header
 
 DESCRIPTION = "Speed against MuJoCo over a family of models the benchmark was not tuned on."
 RTOLS = tuple(10.0**-k for k in range(3, 13))
@@ -12,28 +12,16 @@ DTS = tuple(1e-2 / 2**k for k in range(6))
 
 def measure(quick, repeats):
     """Every member, in order: a list of their measurements. None without MuJoCo."""
-    import bundledyn as bd
+    from benchmarks._mujoco import float64_cpu_run_with_mujoco
     from benchmarks.family.measure import measure_member
     from benchmarks.family.members import members
     from benchmarks.speed.config import PACKAGES
 
-    bd.use_cpu_xla_flags()
-    bd.enable_x64()
-    try:
-        import mujoco  # noqa: F401
-    except ImportError:
-        print("mujoco is not installed (pip install '.[bench]'): nothing to compare against")
+    if not float64_cpu_run_with_mujoco():
         return None
     t1 = 1.0 if quick else 10.0
     rtols, dts = ((1e-4, 1e-8), DTS[:2]) if quick else (RTOLS, DTS)
-    report = {
-        "provenance": provenance(),
-        "environment": environment(PACKAGES),
-        "repeats": repeats,
-        "quick": quick,
-        "t1": t1,
-        "members": [],
-    }
+    report = report_header(PACKAGES, quick, repeats=repeats, t1=t1, members=[])
     for seed, member in enumerate(members(quick)):
         result = measure_member(member, seed, t1=t1, rtols=rtols, dts=dts, repeats=repeats)
         report["members"].append(result)

@@ -6,7 +6,7 @@ import json
 import time
 
 from benchmarks import _output
-from benchmarks._provenance import environment, provenance
+from benchmarks._provenance import report_header
 
 DESCRIPTION = "Identification against mujoco.sysid, on the same MuJoCo-generated data sets."
 NAME = "identification"
@@ -40,15 +40,10 @@ def measure(args):
     sysid_iters = args.sysid_iters or (8 if args.quick else SYSID_ITERS)
     names = args.cases.split(",") if args.cases else (["tumble"] if args.quick else list(CASES))
     levels = (0.01,) if args.quick else LEVELS
-    report = {
-        "provenance": provenance(),
-        "environment": environment(PACKAGES),
-        "quick": args.quick,
-        "seeds": len(seeds),
-        "levels": list(levels),
-        "sysid_iters": sysid_iters,
-        "cases": {},
-    }
+    report = report_header(
+        PACKAGES, args.quick, seeds=len(seeds), levels=list(levels), sysid_iters=sysid_iters,
+        cases={},
+    )  # fmt: skip
     began = time.perf_counter()
     for name in names:
         case = CASES[name]

@@ -7,7 +7,7 @@ import os
 import sys
 
 from benchmarks import _output
-from benchmarks._provenance import environment, provenance
+from benchmarks._provenance import report_header
 from benchmarks._timing import run_worker
 
 DESCRIPTION = "Speed against MuJoCo, measured in one run on the same MJCF model."
@@ -41,26 +41,17 @@ def measure(quick, repeats):
     """The CPU run: parts 2, 3's calibration, 1's MuJoCo step and 5 here, 5b in a process
     of its own, parts 1, 3 and 4 in a worker per XLA setting. None without MuJoCo."""
     import bundledyn as bd
+    from benchmarks._mujoco import float64_cpu_run_with_mujoco
     from benchmarks.speed.batch import batch_calibration
     from benchmarks.speed.chain import chain_ten_seconds
     from benchmarks.speed.config import MEMORY_STEPS, PACKAGES
     from benchmarks.speed.field import mujoco_rk4_step
     from benchmarks.speed.gradient import gradient_cost
 
-    bd.use_cpu_xla_flags()
-    bd.enable_x64()
-    try:
-        import mujoco  # noqa: F401
-    except ImportError:
-        print("mujoco is not installed (pip install '.[bench]'): nothing to compare against")
+    if not float64_cpu_run_with_mujoco():
         return None
     ns = (1, 2, 5) if quick else (1, 5, 10, 20)
-    report = {
-        "provenance": provenance(),
-        "environment": environment(PACKAGES),
-        "repeats": repeats,
-        "quick": quick,
-    }
+    report = report_header(PACKAGES, quick, repeats=repeats)
     print("part 2: chain", flush=True)
     report["chain"] = chain_ten_seconds(repeats, quick)
     batch_t1 = 0.2 if quick else 1.0

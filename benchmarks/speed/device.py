@@ -6,7 +6,7 @@ import os
 import sys
 
 from benchmarks import _output
-from benchmarks._provenance import environment, provenance
+from benchmarks._provenance import report_header
 from benchmarks._report import fmt, provenance_lines
 from benchmarks.speed.batch import batch_rollout, batch_throughput
 from benchmarks.speed.config import DEVICE_BATCHES, PACKAGES, setting_label
@@ -143,16 +143,11 @@ def device_batch_main(out, quick, repeats):
     cpu = json.loads(source.read_text())
     sizes = (256, 1024) if quick else DEVICE_BATCHES
     t1 = 0.2 if quick else 1.0
-    report = {
-        "provenance": provenance(),
-        "environment": environment(PACKAGES),
-        "repeats": repeats,
-        "quick": quick,
-        "t1": t1,
-        "batch_setting": cpu["batch_setting"],
-        "mjx_at_equal_accuracy": (cpu["batch_calibration"].get("mjx") or {}).get("at_target"),
-        "device_batches": device_batches(sizes, cpu["batch_setting"], t1, repeats),
-    }
+    report = report_header(
+        PACKAGES, quick, repeats=repeats, t1=t1, batch_setting=cpu["batch_setting"],
+        mjx_at_equal_accuracy=(cpu["batch_calibration"].get("mjx") or {}).get("at_target"),
+        device_batches=device_batches(sizes, cpu["batch_setting"], t1, repeats),
+    )  # fmt: skip
     text = device_markdown(report)
     print(text)
     _output.write(out, _output.stem(f"speed_{jax.devices()[0].platform}", quick), report, text)
