@@ -13,25 +13,26 @@ DTS = tuple(1e-2 / 2**k for k in range(6))
 def measure(quick, repeats):
     """Every member, in order: a list of their measurements. None without MuJoCo."""
     from benchmarks._mujoco import float64_cpu_run_with_mujoco
-    from benchmarks.family.measure import measure_member
+    from benchmarks.family.measure import HORIZONS, measure_member
     from benchmarks.family.members import members
     from benchmarks.speed.config import PACKAGES
 
     if not float64_cpu_run_with_mujoco():
         return None
-    t1 = 1.0 if quick else 10.0
+    horizons = (1.0,) if quick else HORIZONS
     rtols, dts = ((1e-4, 1e-8), DTS[:2]) if quick else (RTOLS, DTS)
-    report = report_header(PACKAGES, quick, repeats=repeats, t1=t1, members=[])
+    report = report_header(PACKAGES, quick, repeats=repeats, horizons=horizons, members=[])
+    options = dict(horizons=horizons, rtols=rtols, dts=dts, repeats=repeats)
     for seed, member in enumerate(members(quick)):
-        result = measure_member(member, seed, t1=t1, rtols=rtols, dts=dts, repeats=repeats)
+        result = measure_member(member, seed, **options)
         report["members"].append(result)
         r = result["ratios"]
         solves = " and ".join(
             "not reached" if x is None else f"{x:.2f}×" for x in (r["coarse"], r["fine"])
         )
         print(
-            f"  {member.name}: field {result['field']['ratio']:.2f}× mj_forward; "
-            f"solves {solves} MuJoCo's time",
+            f"  {member.name}: field {result['field']['ratio']:.2f}× mj_forward; over "
+            f"{result['horizon']} s, solves {solves} MuJoCo's time",
             flush=True,
         )
     return report

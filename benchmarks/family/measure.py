@@ -1,19 +1,55 @@
-"""One member of the family: its field against `mj_forward`, and 10 s of it with
-bundledyn's default solver and with MuJoCo RK4 over their settings, timed in alternation."""
+"""One member of the family: its field against `mj_forward`, and its motion over its
+predictable horizon with bundledyn's default solver and with MuJoCo RK4 over their
+settings, timed in alternation.
+
+Many members are chaotic: over 10 s two solvers at rtol 1e-13 end far apart, and a final
+state's "error" would then measure nothing. Each member is therefore solved over the
+longest of `HORIZONS` over which RKMK87 and diffrax's Dopri8 (on the 4×4 embedding), both
+at rtol 1e-13, agree to `REFERENCE_AGREEMENT`: a reference good to a tenth of the finest
+error compared."""
 
 import warnings
 
 import jax
 
 import bundledyn as bd
-from benchmarks._errors import state_error, time_at_error
+from benchmarks._errors import final_state, state_error, time_at_error
 from benchmarks._mujoco import physics_state, rollout_final_state
 from benchmarks._timing import blocking, interleaved
 from benchmarks.family.members import Member, initial_qpos_qvel, mujoco_model
-from benchmarks.speed.config import MUJOCO_DT, rollout_fn
+from benchmarks.speed.config import MUJOCO_DT, simulate_options
 from benchmarks.speed.field import data_forward_sampler, scene_field_sampler
 
 FINE_ERROR = 1e-9  # the issue's second accuracy: bundledyn at ≤ 0.5× MuJoCo's time there
+REFERENCE_AGREEMENT = 1e-10
+HORIZONS = (10.0, 5.0, 2.0, 1.0, 0.5)  # seconds, longest first
+
+
+def adaptive_run(scene, solver):
+    """A jitted `(state, rtol, t1) -> (final state, steps)` of `bd.simulate` with `solver`
+    (a name in bundledyn or diffrax) at rtol (atol = rtol / 100); rtol and t1 are traced,
+    so that every setting and horizon share one compilation."""
+
+    @jax.jit
+    def run(state, rtol, t1):
+        options = simulate_options(solver, "adaptive", rtol)
+        traj = bd.simulate(scene, state, t1, max_steps=200_000, **options)
+        return final_state(traj), traj.stats["num_steps"]
+
+    return run
+
+
+def predictable_horizon(scene, state, horizons):
+    """`(t1, reference, agreement)`: the longest horizon over which RKMK87 and Dopri8 at
+    rtol 1e-13 agree to `REFERENCE_AGREEMENT`, RKMK87's final state there and the
+    agreement; `(None, None, agreement at the shortest)` if none."""
+    ours, check = adaptive_run(scene, "RKMK87"), adaptive_run(scene, "Dopri8")
+    for t1 in horizons:
+        reference, _ = ours(state, 1e-13, t1)
+        agreement = state_error(reference, check(state, 1e-13, t1)[0])
+        if agreement <= REFERENCE_AGREEMENT:
+            return t1, reference, agreement
+    return None, None, agreement
 
 
 def member_scene(member: Member) -> bd.Scene:
@@ -38,17 +74,16 @@ def field_ratio(scene, state, model, repeats):
     return {"field": field, "mj_forward": forward, "ratio": field["median"] / forward["median"]}
 
 
-def solves(scene, state, member, *, t1, rtols, dts, repeats):
+def solves(scene, state, member, reference, *, t1, rtols, dts, repeats):
     """bundledyn's default solver over `rtols` and MuJoCo RK4 over `dts` on `t1` seconds:
-    each point's error at t1 against RKMK87 at rtol 1e-13, its steps and its time."""
-    run = rollout_fn(scene, t1, "RKMK87")
-    reference, _ = run(state, 1e-13)
+    each point's error at t1 against `reference`, its steps and its time."""
+    run = adaptive_run(scene, "RKMK87")
     points, samplers = {}, {}
     for rtol in rtols:
-        final, steps = jax.block_until_ready(run(state, rtol))
+        final, steps = jax.block_until_ready(run(state, rtol, t1))
         points["RKMK87", rtol] = {"setting": rtol, "error": state_error(final, reference)}
         points["RKMK87", rtol]["steps"] = int(steps)
-        samplers["RKMK87", rtol] = blocking(run, state, rtol)
+        samplers["RKMK87", rtol] = blocking(run, state, rtol, t1)
     for dt in dts:
         model = mujoco_model(member, dt)
         final, samplers["MuJoCo RK4", dt] = rollout_final_state(model, t1, scene.system, state)
@@ -62,33 +97,56 @@ def solves(scene, state, member, *, t1, rtols, dts, repeats):
     return curves
 
 
+def time_to_reach(points, target):
+    """The time a sweep takes to reach error `target`: interpolated log–log between the
+    points that bracket it, the cheapest point's where every point is within it, None
+    where none is."""
+    if all(p["error"] <= target for p in points):
+        return min(p["time"]["median"] for p in points)
+    return time_at_error(points, target)
+
+
 def ratios(curves):
     """bundledyn's time over MuJoCo's at MuJoCo's error with dt = 1e-2 (`coarse`) and at
-    `FINE_ERROR` (`fine`; None where a sweep does not reach it)."""
+    `FINE_ERROR` (`fine`): infinite where bundledyn's sweep does not reach the error, None
+    where MuJoCo's does not or nothing was solved."""
+    if not curves:
+        return {"coarse_error": None, "coarse": None, "fine": None}
     ours, mujoco = curves["RKMK87"], curves["MuJoCo RK4"]
     coarse = mujoco[0]
-    t_ours = time_at_error(ours, coarse["error"])
-    t_fine, t_mj_fine = time_at_error(ours, FINE_ERROR), time_at_error(mujoco, FINE_ERROR)
+
+    def ratio(target, t_mujoco):
+        if t_mujoco is None:
+            return None
+        t_ours = time_to_reach(ours, target)
+        return float("inf") if t_ours is None else t_ours / t_mujoco
+
     return {
         "coarse_error": coarse["error"],
-        "coarse": None if t_ours is None else t_ours / coarse["time"]["median"],
-        "fine": None if None in (t_fine, t_mj_fine) else t_fine / t_mj_fine,
+        "coarse": ratio(coarse["error"], coarse["time"]["median"]),
+        "fine": ratio(FINE_ERROR, time_to_reach(mujoco, FINE_ERROR)),
     }
 
 
-def measure_member(member: Member, seed: int, *, t1, rtols, dts, repeats):
+def measure_member(member: Member, seed: int, *, horizons, rtols, dts, repeats):
     """Everything measured on one member."""
     scene = member_scene(member)
     model = mujoco_model(member, MUJOCO_DT)
     qpos, qvel = initial_qpos_qvel(model, member.rate, seed)
     state = bd.state_from_mujoco(scene.system, qpos, qvel, qpos0=model.qpos0)
-    curves = solves(scene, state, member, t1=t1, rtols=rtols, dts=dts, repeats=repeats)
+    t1, reference, agreement = predictable_horizon(scene, state, horizons)
+    curves = {}
+    if t1 is not None:
+        options = dict(t1=t1, rtols=rtols, dts=dts, repeats=repeats)
+        curves = solves(scene, state, member, reference, **options)
     return {
         "name": member.name,
         "bodies": member.bodies,
         "kind": member.kind,
         "rate": member.rate,
         "dofs": int(model.nv),
+        "horizon": t1,
+        "reference_agreement": agreement,
         "field": field_ratio(scene, state, model, repeats),
         "solves": curves,
         "ratios": ratios(curves),
