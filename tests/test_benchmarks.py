@@ -172,11 +172,43 @@ def test_family_members_are_one_system_in_both_simulators(index):
     assert abs(T - T_mujoco) <= 1e-12 * T_mujoco
 
 
-def test_family_quick_writes_its_report(tmp_path):
+def test_family_report_redraws_from_its_json(tmp_path):
+    """The committed family results rebuild the same markdown (`--report-only`), and each
+    target's verdict is its worst case against its limit."""
     from benchmarks import family
+    from benchmarks._output import RESULTS
+    from benchmarks.family.report import target_rows
 
-    report = family.main(["--quick", "--out", str(tmp_path)])
-    (member,) = report["members"]
-    assert member["ratios"]["coarse"] is not None
-    text = (tmp_path / "family_quick.md").read_text()
-    assert "| one field evaluation / mj_forward |" in text and member["name"] in text
+    (tmp_path / "family.json").write_bytes((RESULTS / "family.json").read_bytes())
+    family.main(["--report-only", "--out", str(tmp_path)])
+    text = (tmp_path / "family.md").read_text()
+    assert text == (RESULTS / "family.md").read_text()
+    report = json.loads((tmp_path / "family.json").read_text())
+    assert len(report["members"]) == 18
+    for what, _, worst, _, limit, met, _ in target_rows(report):
+        assert met == (worst is not None and worst <= limit)
+        assert f"| {what} |" in text
+
+
+def _curve(*points):
+    return [{"error": e, "time": {"median": t}} for e, t in points]
+
+
+def test_family_ratios_at_an_error():
+    """Interpolated log–log where a sweep brackets the error, the cheapest point where the
+    whole sweep is within it, infinite where bundledyn's sweep does not reach it, and
+    unmeasured where MuJoCo's does not."""
+    from benchmarks.family.measure import ratios
+
+    mujoco = _curve((1e-7, 1.0), (1e-9, 4.0), (1e-11, 16.0))
+    ours = _curve((1e-6, 0.5), (1e-8, 1.0), (1e-10, 2.0))
+    r = ratios({"RKMK87": ours, "MuJoCo RK4": mujoco})
+    assert r["coarse_error"] == 1e-7
+    np.testing.assert_allclose(r["coarse"], np.sqrt(0.5 * 1.0) / 1.0)  # halfway in log
+    np.testing.assert_allclose(r["fine"], np.sqrt(1.0 * 2.0) / 4.0)
+    fast = _curve((1e-12, 0.1), (1e-13, 0.2))
+    assert ratios({"RKMK87": fast, "MuJoCo RK4": mujoco})["fine"] == 0.1 / 4.0
+    short = _curve((1e-6, 0.5), (1e-8, 1.0))
+    assert ratios({"RKMK87": short, "MuJoCo RK4": mujoco})["fine"] == float("inf")
+    assert ratios({"RKMK87": ours, "MuJoCo RK4": mujoco[:1]})["fine"] is None
+    assert ratios({})["coarse"] is None

@@ -27,16 +27,17 @@ REFERENCE_AGREEMENT = 1e-10
 HORIZONS = (10.0, 5.0, 2.0, 1.0, 0.5)  # seconds, longest first
 
 
-def adaptive_run(scene, solver):
+def adaptive_run(scene, solver, max_steps=200_000):
     """A jitted `(state, rtol, t1) -> (final state, steps)` of `bd.simulate` with `solver`
     (a name in bundledyn or diffrax) at rtol (atol = rtol / 100); rtol and t1 are traced,
     so that every setting and horizon share one compilation. A solve that fails (its step
-    budget spent) ends in a NaN state, which is as far from any reference as can be."""
+    budget `max_steps` spent) ends in a NaN state, which is as far from any reference as
+    can be."""
 
     @jax.jit
     def run(state, rtol, t1):
         options = simulate_options(solver, "adaptive", rtol)
-        traj = bd.simulate(scene, state, t1, max_steps=200_000, throw=False, **options)
+        traj = bd.simulate(scene, state, t1, max_steps=max_steps, throw=False, **options)
         failed = traj.result != diffrax.RESULTS.successful
         final = jax.tree.map(lambda x: jnp.where(failed, jnp.nan, x), final_state(traj))
         return final, traj.stats["num_steps"]
@@ -48,7 +49,9 @@ def predictable_horizon(scene, state, horizons):
     """`(t1, reference, agreement)`: the longest horizon over which RKMK87 and Dopri8 at
     rtol 1e-13 agree to `REFERENCE_AGREEMENT`, RKMK87's final state there and the
     agreement; `(None, None, agreement at the shortest)` if none."""
-    ours, check = adaptive_run(scene, "RKMK87"), adaptive_run(scene, "Dopri8")
+    # Dopri8's budget is small: on the embedding, a ball joint's rotation-vector chart
+    # degenerates as it turns (no rechart there), and a grinding check only shortens t1.
+    ours, check = adaptive_run(scene, "RKMK87"), adaptive_run(scene, "Dopri8", 20_000)
     for t1 in horizons:
         reference, _ = ours(state, 1e-13, t1)
         agreement = state_error(reference, check(state, 1e-13, t1)[0])
