@@ -27,15 +27,19 @@ def measure(quick, repeats):
         result = measure_member(member, seed, **options)
         report["members"].append(result)
         r = result["ratios"]
-        solves = " and ".join(
-            "not reached" if x is None else f"{x:.2f}×" for x in (r["coarse"], r["fine"])
-        )
+        solves = " and ".join(_ratio(x) for x in (r["coarse"], r["fine"]))
         print(
             f"  {member.name}: field {result['field']['ratio']:.2f}× mj_forward; over "
             f"{result['horizon']} s, solves {solves} MuJoCo's time",
             flush=True,
         )
     return report
+
+
+def _ratio(x):
+    if x is None:
+        return "unmeasured"
+    return "not reached" if x == float("inf") else f"{x:.2f}×"
 
 
 def main(argv=None):
