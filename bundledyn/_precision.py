@@ -1,12 +1,25 @@
-"""Floating-point precision: float64 is opt-in, never switched on at import."""
+"""Floating-point precision: float64 is opt-in, never switched on at import; tolerances that
+the working precision cannot meet are refused or warned about, in the caller's line."""
 
+import os
+import sys
 import warnings
 
+import diffrax
+import equinox
 import jax
 import jax.numpy as jnp
+import numpy as np
 from jax.typing import ArrayLike
 
 from ._systems._validation import concrete
+
+# Frames in these folders are the library's, not the user's: warnings skip past them.
+LIBRARY_FOLDERS = tuple(
+    os.path.dirname(path) + os.sep
+    for path in (__file__, jax.__file__, equinox.__file__, diffrax.__file__)
+    if path is not None
+)
 
 
 def enable_x64(enable: bool = True) -> None:
@@ -22,20 +35,75 @@ def enable_x64(enable: bool = True) -> None:
     jax.config.update("jax_enable_x64", enable)
 
 
-def warn_if_tolerance_too_tight(tolerance: ArrayLike, dtype) -> None:
-    """Warn when a requested tolerance is below what `dtype` can resolve.
+def warn_in_callers_code(message: str, category: type[Warning] = UserWarning) -> None:
+    """Warn with the location of the first caller outside bundledyn, JAX, equinox and diffrax.
+
+    A fixed `stacklevel` would point into `equinox.filter_jit` or a JAX transformation when
+    the warning is raised while tracing.
+    """
+    frame, level = sys._getframe(0), 1
+    while frame is not None and frame.f_code.co_filename.startswith(LIBRARY_FOLDERS):
+        frame, level = frame.f_back, level + 1
+    warnings.warn(message, category, stacklevel=level)
+
+
+def _advice(dtype) -> str:
+    if jnp.finfo(dtype).bits < 64:
+        return (
+            "call `bundledyn.enable_x64()` before building arrays to compute in float64, "
+            "or ask for a looser tolerance"
+        )
+    return "float64 is JAX's widest type: ask for rtol of 1e-14 or more"
+
+
+def check_tolerances(rtol: ArrayLike, atol: ArrayLike, dtype) -> None:
+    """Refuse tolerances no step size can meet in `dtype`; warn about ones at its rounding.
+
+    A relative and absolute tolerance both below the rounding error $\\varepsilon$ of `dtype`
+    cannot be met (an adaptive controller would shrink the step until `max_steps`), so they
+    raise; both below $100\\varepsilon$ warn. Traced tolerances are the caller's choice.
 
     **Arguments:**
 
-    - `tolerance`: the relative tolerance the user asked for.
-    - `dtype`: the floating dtype the computation will run in.
+    - `rtol`, `atol`: the step-size controller's tolerances.
+    - `dtype`: the floating dtype the solve runs in.
+
+    **Raises:**
+
+    `ValueError` for a negative tolerance, both zero, or both below $\\varepsilon$.
     """
-    eps = float(jnp.finfo(dtype).eps)
-    value = concrete(tolerance)  # None under jit: a traced tolerance is the caller's choice
-    if value is not None and value < 100 * eps:
-        warnings.warn(
-            f"a tolerance of {tolerance:g} was asked for in {jnp.dtype(dtype).name}, whose "
-            f"rounding error is {eps:.1e}; call `bundledyn.enable_x64()` before building arrays "
-            "to compute in float64.",
-            stacklevel=3,
+    r, a = concrete(rtol), concrete(atol)
+    if r is None or a is None:
+        return
+    r, a = float(np.max(r)), float(np.max(a))
+    if min(r, a) < 0 or max(r, a) == 0:
+        raise ValueError(
+            f"tolerances must be non-negative and not both zero, got rtol={r:g}, atol={a:g}."
         )
+    eps = float(jnp.finfo(dtype).eps)
+    name = jnp.dtype(dtype).name
+    if max(r, a) < eps:
+        raise ValueError(
+            f"rtol={r:g} and atol={a:g} are below {name}'s rounding error {eps:.1e}: no step "
+            f"size can meet them; {_advice(dtype)}."
+        )
+    if max(r, a) < 100 * eps:
+        warn_in_callers_code(
+            f"rtol={r:g} and atol={a:g} are within 100 times {name}'s rounding error "
+            f"{eps:.1e}: steps may be rejected for rounding and the solution is no more "
+            f"accurate than about {100 * eps:.0e}; {_advice(dtype)}."
+        )
+
+
+def default_residual_tolerance(dtype) -> float:
+    """The relative residual below which a computed invariance condition counts as zero.
+
+    1e-10 in float64 (about $5\\cdot10^5\\varepsilon$: the checks chain a few hundred
+    operations, each rounding); 1e-4 in float32 (about $840\\varepsilon$), where residuals of
+    valid models are measured at 1e-7 to 1e-5.
+
+    **Arguments:**
+
+    - `dtype`: the floating dtype of the computation.
+    """
+    return 1e-10 if jnp.finfo(dtype).bits >= 64 else 1e-4

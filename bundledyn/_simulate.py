@@ -9,7 +9,7 @@ import jax.numpy as jnp
 import jax.tree_util as jtu
 
 from . import lie
-from ._precision import warn_if_tolerance_too_tight
+from ._precision import check_tolerances
 from ._scene import Scene
 from ._solver._base import AbstractLieGroupSolver
 from ._solver._rkmk import RKMK87, AbstractRKMK
@@ -113,7 +113,9 @@ def simulate(
       reported as `stats["embedding_drift"]`.
     - `rtol`, `atol`: tolerances of the default step-size controller (adaptive solvers), a
       `diffrax.PIDController` with Gustafsson's PI coefficients (`pcoeff=0.4`,
-      `icoeff=0.3`); unused when `stepsize_controller` is given.
+      `icoeff=0.3`); unused when `stepsize_controller` is given. Negative tolerances, and
+      tolerances below the working precision's rounding error, raise `ValueError` (no step
+      size meets them); ones within 100 times it warn.
     - `dt0`: the initial step; required by fixed-step solvers, where it is the step. For
       adaptive ones it defaults to Hairer, Nørsett & Wanner's starting step (two field
       evaluations before the stepping loop, which add one copy of the field to the
@@ -158,7 +160,7 @@ def simulate(
         controller = diffrax.ConstantStepSize()
     adaptive = isinstance(controller, diffrax.AbstractAdaptiveStepSizeController)
     if adaptive:
-        warn_if_tolerance_too_tight(controller.rtol, y0[0].dtype)
+        check_tolerances(controller.rtol, controller.atol, y0[0].dtype)
     if dt0 is None and adaptive and isinstance(solver, diffrax.AbstractAdaptiveSolver):
         h = starting_step(
             term,

@@ -5,6 +5,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from .._precision import default_residual_tolerance, warn_in_callers_code
 from .._systems._base import AbstractSystem
 from ._conditions import invariance_residuals
 
@@ -88,8 +89,30 @@ def _battery(system, shapes):
     return conditions, properties, mass
 
 
+def _tolerance(tolerance, dtype) -> float:
+    if tolerance is None:
+        return default_residual_tolerance(dtype)
+    if not tolerance > 0:
+        raise ValueError(f"the tolerance must be positive, got {tolerance}.")
+    eps = float(jnp.finfo(dtype).eps)
+    if tolerance < 1e3 * eps:
+        warn_in_callers_code(
+            f"a residual tolerance of {tolerance:g} is below 1000 times {jnp.dtype(dtype).name}'s "
+            f"rounding error {eps:.1e}: valid models can fail by rounding alone; call "
+            "`bundledyn.enable_x64()` before building the model, or leave `tolerance` at its "
+            "default."
+        )
+    return float(tolerance)
+
+
 def galilean_invariance(
-    system: AbstractSystem, key, n: int = 256, *, shapes=None, scale: float = 1.0, tolerance=1e-10
+    system: AbstractSystem,
+    key,
+    n: int = 256,
+    *,
+    shapes=None,
+    scale: float = 1.0,
+    tolerance: float | None = None,
 ) -> InvarianceReport:
     r"""Check that `system` is an acceptable mechanical model: Theorems 2.2 and 2.3 on sampled shapes.
 
@@ -105,7 +128,10 @@ def galilean_invariance(
     - `n`: number of shapes.
     - `shapes`: optional `(n, d)` array of shapes to check instead of sampling.
     - `scale`: half-width of the sampling box, in the shape coordinates' units.
-    - `tolerance`: largest relative residual that counts as zero.
+    - `tolerance`: largest relative residual that counts as zero; by default it follows the
+      working precision (`default_residual_tolerance`: 1e-10 in float64, 1e-4 in float32).
+      One below about $1000\varepsilon$ of the working precision warns: rounding alone can
+      exceed it.
 
     **Returns:**
 
@@ -121,11 +147,12 @@ def galilean_invariance(
             f"`galilean_invariance` needs shapes of shape (n >= 1, {d}), got {shapes.shape}."
         )
     conditions, properties, mass = _battery(system, shapes)
+    tolerance = _tolerance(tolerance, conditions.dtype)
     return InvarianceReport(
         type(system).__name__,
         np.asarray(shapes),
         np.asarray(conditions),
         np.asarray(properties),
         float(mass),
-        float(tolerance),
+        tolerance,
     )

@@ -8,13 +8,28 @@ the pose's rate as its body twist (`body_field`): from an `AbstractBodyTerm` dir
 from any other term read off $\dot g$.
 """
 
+import equinox as eqx
+import jax.numpy as jnp
 import jax.tree_util as jtu
 
 from .. import lie
 from .._linalg import dot
 from .._term import AbstractBodyTerm, SceneTerm, split, twist_of_tangent
 
-__all__ = ["body_field", "from_chart", "recharted"]
+__all__ = ["body_field", "checked_start", "from_chart", "recharted"]
+
+NONFINITE_FIELD = (
+    "bundledyn: the vector field is NaN or infinite at a finite state that the solver "
+    "accepted, where a step starts: an effect (a force, wrench or potential) returned NaN "
+    "or Inf there, or the system's metric is singular there (a degenerate model)."
+)
+COLLAPSED_STEP = (
+    "bundledyn: the step size fell to the rounding error of the time (100 ulps): the "
+    "solution is singular at the time the solve stopped, just past the last accepted state: "
+    "the vector field is NaN or Inf there (an effect that returns NaN or Inf from then on) "
+    "or grows without bound (the metric becoming singular, a force blowing up). No step "
+    "size can get past it."
+)
 
 
 def from_chart(g0, rest0, treedef, omega, deltas):
@@ -53,3 +68,25 @@ def recharted(terms, t, y):
     if isinstance(inner, SceneTerm) and direction is not None:
         return inner.recharted(t * direction, y)
     return y
+
+
+def _finite(tree):
+    return jnp.all(jnp.stack([jnp.all(jnp.isfinite(leaf)) for leaf in jtu.tree_leaves(tree)]))
+
+
+def checked_start(y1, t0, t1, y0, field0):
+    """`y1`, raising at run time if the field `field0` at the accepted state `y0` is not
+    finite while `y0` is, or if the step from `t0` to `t1` is shorter than the rounding
+    error of `t0` (but not zero: finished members of a `vmap`ped solve take steps of zero
+    length; and diffrax never clips a last step that short).
+
+    A non-finite field at a trial state may be the trial's fault (a step too long), and
+    the step-size controller rejects it; at the state the step starts from, or when the
+    controller has shrunk the step to rounding, it is the model's. diffrax's controller
+    would shrink the step until `max_steps` and then advise raising it, which cannot help.
+    """
+    y1 = eqx.error_if(y1, _finite(y0) & ~_finite(field0), NONFINITE_FIELD)
+    t0, t1 = jnp.asarray(t0), jnp.asarray(t1)
+    ulps = 100 * jnp.finfo(jnp.result_type(t0, t1, float)).eps * jnp.abs(t0)
+    h = jnp.abs(t1 - t0)
+    return eqx.error_if(y1, (h > 0) & (h <= ulps), COLLAPSED_STEP)

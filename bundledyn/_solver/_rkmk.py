@@ -36,7 +36,7 @@ from .. import lie
 from .._linalg import dot
 from .._term import split
 from ._base import AbstractLieGroupSolver
-from ._chart import body_field, from_chart, recharted
+from ._chart import body_field, checked_start, from_chart, recharted
 from ._interpolation import LieLocalInterpolation
 from ._tableau import LieButcherTableau, dopri5_tableau, dopri8_tableau, rk4_tableau
 
@@ -87,6 +87,10 @@ class AbstractRKMK(AbstractLieGroupSolver):
       when nothing interpolates (no `SaveAt(ts=...)`, no `SaveAt(dense=True)`, no event).
       The saved states are the same either way.
 
+    - A field that is NaN or infinite at the (finite) state a step starts from raises
+      (`equinox.error_if`, inside `jit` and `grad` too), naming the model as the cause:
+      diffrax's controller would otherwise reject the step and shrink it until `max_steps`.
+
     Valid while the rotation part of the algebra increments stays below $2\pi$
     (where $\mathrm{dexp}^{-1}$ is singular); an adaptive controller keeps it far below.
     """
@@ -134,6 +138,7 @@ class AbstractRKMK(AbstractLieGroupSolver):
 
         b = jnp.asarray(tab.b_sol, dtype=dtype)
         y1 = from_chart(g0, rest0, treedef, _combine(b, kappas), [_combine(b, k) for k in ks])
+        y1 = checked_start(y1, t0, t1, y0, [kappas[..., 0]] + [k[..., 0] for k in ks])
 
         if tab.b_error is None:
             y_error = None
