@@ -2,7 +2,7 @@
 
 import importlib.metadata
 
-from . import checks, identify, lie
+from . import checks, identify, lie, stress
 from ._dynamics import (
     BundleGeometry,
     bundle_geometry,
@@ -49,7 +49,7 @@ from ._identify_file import IdentificationFile
 from ._paths import models, scenes
 from ._precision import enable_x64
 from ._scene import FloatingBase, Free, Prescribed, PrescribedBase, Scene
-from ._scene_file import SceneFile, SceneFileError, load_system
+from ._scene_file import SceneFile, SceneFileError, load_scene, load_system
 from ._simulate import project_to_se3, simulate
 from ._solids import AbstractSolid, Box, Capsule, Ellipsoid
 from ._solver._base import AbstractLieGroupSolver
@@ -139,6 +139,7 @@ __all__ = [
     "LieButcherTableau",
     "LieEuler",
     "Link",
+    "load_scene",
     "load_system",
     "locked_acceleration",
     "locked_inertia",
@@ -178,6 +179,7 @@ __all__ = [
     "Spherical",
     "square_loop_holonomy",
     "State",
+    "stress",
     "state_from_mujoco",
     "state_to_mujoco",
     "Trajectory",

@@ -31,6 +31,22 @@ def _solve(scene_file, *, progress=False):
     return traj, elapsed
 
 
+def _positive(kind):
+    """An argparse type: `kind` (int or float) parsed and required to be positive."""
+
+    def parse(text: str):
+        try:
+            value = kind(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
+        if not value > 0:
+            raise argparse.ArgumentTypeError(f"must be positive, got {text}")
+        return value
+
+    parse.__name__ = f"positive {kind.__name__}"
+    return parse
+
+
 class _Failure(Exception):
     """A run that went wrong in a way the user can fix; reported in one line, exit code 1."""
 
@@ -142,6 +158,19 @@ def check(args) -> int:
     return 0 if report.passed else 1
 
 
+def stress(args) -> int:
+    """Run the stress battery (on a model when one is given); exit 1 if a case fails."""
+    import bundledyn as bd
+
+    if args.model is None:
+        report = bd.stress.battery(quick=args.quick)
+    else:
+        report = bd.stress.model_battery(bd.load_scene(args.model, passive=True), args.model)
+    print(f"bundledyn stress {args.model or ''}".rstrip())
+    print(report)
+    return 0 if report.passed else 1
+
+
 def demo(args) -> int:
     """A falling cat turns itself over at zero angular momentum: simulated, checked, drawn."""
     import jax
@@ -217,10 +246,20 @@ def main(argv=None) -> int:
     p.set_defaults(run=run)
     p = commands.add_parser("check", help="Galilean-invariance report of a model")
     p.add_argument("model", help="an MJCF (.xml), URDF (.urdf) or scene (.toml) file")
-    p.add_argument("--samples", type=int, default=256, help="sampled shapes (default 256)")
-    p.add_argument("--tolerance", type=float, default=1e-10, help="largest residual (1e-10)")
+    p.add_argument(
+        "--samples", type=_positive(int), default=256, help="sampled shapes (default 256)"
+    )
+    p.add_argument(
+        "--tolerance", type=_positive(float), default=1e-10, help="largest residual (1e-10)"
+    )
     p.add_argument("--seed", type=int, default=0, help="random seed of the shapes")
     p.set_defaults(run=check)
+    p = commands.add_parser("stress", help="hard cases, each against its bound")
+    p.add_argument(
+        "model", nargs="?", help="an MJCF, URDF or scene file (default: the shipped cases)"
+    )
+    p.add_argument("--quick", action="store_true", help="the suite's cheaper settings")
+    p.set_defaults(run=stress)
     p = commands.add_parser(
         "identify", help="fit masses, centres and inertias to measured motion (TOML config)"
     )
@@ -239,7 +278,7 @@ def main(argv=None) -> int:
     except bd.SceneFileError as error:
         print(f"bundledyn: error: {error}", file=sys.stderr)
         return 2
-    except (_Failure, ImportError) as error:
+    except (_Failure, ImportError, ValueError) as error:
         print(f"bundledyn: error: {error}", file=sys.stderr)
         return 1
 

@@ -312,16 +312,36 @@ def load_system(path):
 
     Raises `SceneFileError` (a `ValueError`) naming the file and the problem.
     """
+    return load_scene(path).system
+
+
+def load_scene(path, *, passive: bool = False) -> Scene:
+    """A scene from a model file: MJCF (`.xml`) or URDF (`.urdf`), or a scene file's scene
+    (`.toml`, with its effects, shape mode and frame).
+
+    **Arguments:**
+
+    - `path`: the file.
+    - `passive`: for MJCF and URDF, add the model's springs and dampers
+      (`Scene.from_mjcf`'s `passive`).
+
+    **Returns:**
+
+    The `Scene`.
+
+    Raises `SceneFileError` (a `ValueError`) naming the file and the problem.
+    """
     path = pathlib.Path(path)
     if not path.is_file():
         raise SceneFileError(f"{path}: no such file.")
     suffix = path.suffix.lower()
     if suffix == ".toml":
-        return SceneFile.load(path).scene.system
+        return SceneFile.load(path).scene
     if suffix not in (".xml", ".urdf"):
         raise SceneFileError(f"{path}: unknown model format {suffix!r}; use .xml, .urdf or .toml.")
-    table = _Table(path, "", {"path": path.name})
-    return _model(table, "mjcf" if suffix == ".xml" else "urdf", path.parent)[0]
+    table = _Table(path, "", {"path": path.name, "passive": passive})
+    system, _, effects = _model(table, "mjcf" if suffix == ".xml" else "urdf", path.parent)
+    return Scene(system, list(effects))
 
 
 # ------------------------------------------------------------------------------- scene

@@ -21,7 +21,10 @@ LAYERS = (
     ("term", {"_term"}),
     ("integrators", {"_solver"}),
     ("simulate", {"_simulate", "_trajectory"}),
-    ("identification and checks", {"_checks", "checks", "_identify", "identify"}),
+    (
+        "identification, checks and stress",
+        {"_checks", "checks", "_identify", "identify", "_stress", "stress"},
+    ),
     ("front", {"_viz", "viz", "_scene_file", "_identify_file", "_cli", "__main__", "__init__"}),
 )
 

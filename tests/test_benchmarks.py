@@ -2,6 +2,7 @@
 
 import dataclasses
 import json
+import pathlib
 
 import numpy as np
 import pytest
@@ -212,3 +213,21 @@ def test_family_ratios_at_an_error():
     assert ratios({"RKMK87": short, "MuJoCo RK4": mujoco})["fine"] == float("inf")
     assert ratios({"RKMK87": ours, "MuJoCo RK4": mujoco[:1]})["fine"] is None
     assert ratios({})["coarse"] is None
+
+
+def test_stress_results_redraw_and_the_readme_quotes_them(tmp_path):
+    """The committed stress results rebuild the same markdown (`--report-only`), record the
+    code they measured, cover the battery and every shipped model, and the README's table is
+    the one they give."""
+    from benchmarks._output import RESULTS
+    from benchmarks.stress.cli import MODELS, main, readme_table
+
+    (tmp_path / "stress.json").write_bytes((RESULTS / "stress.json").read_bytes())
+    main(["--report-only", "--out", str(tmp_path)])
+    assert (tmp_path / "stress.md").read_text() == (RESULTS / "stress.md").read_text()
+    report = json.loads((RESULTS / "stress.json").read_text())
+    assert report["provenance"]["commit"] and not report["quick"]
+    assert [b["model"] for b in report["reports"][1:]] == [*MODELS, "humanoid.xml"]
+    assert all(r["passed"] for b in report["reports"] for r in b["rows"])
+    readme = (pathlib.Path(__file__).parents[1] / "README.md").read_text()
+    assert readme_table(report) in readme
