@@ -56,3 +56,14 @@ def write(out, name, report, text):
     (out / f"{name}.json").write_text(json.dumps(report, indent=1, default=float) + "\n")
     (out / f"{name}.md").write_text(text)
     print(f"wrote {out / name}.{{json,md}}", flush=True)
+
+
+def destination(args, name, markdown):
+    """`(out, stem)` where a run writes; `None` after redrawing `stem.md` from `stem.json`
+    with `markdown` when `args.report_only` asks for only that."""
+    out = folder(args.out, args.quick, name, args.report_only)
+    name = stem(name, args.quick)
+    if not args.report_only:
+        return out, name
+    (out / f"{name}.md").write_text(markdown(json.loads((out / f"{name}.json").read_text())))
+    return None

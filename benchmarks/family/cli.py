@@ -1,7 +1,5 @@
 """`python -m benchmarks.family`: the run, `--quick` and `--report-only`."""
 
-import json
-
 from benchmarks import _output
 from benchmarks._provenance import report_header
 
@@ -48,11 +46,10 @@ def main(argv=None):
     parser = _output.parser(DESCRIPTION, "one small model, 1 s, 2 repeats")
     parser.add_argument("--repeats", type=int, help="timed repeats (default 3; quick 2)")
     args = parser.parse_args(argv)
-    out = _output.folder(args.out, args.quick, "family", args.report_only)
-    name = _output.stem("family", args.quick)
-    if args.report_only:
-        (out / f"{name}.md").write_text(markdown(json.loads((out / f"{name}.json").read_text())))
+    where = _output.destination(args, "family", markdown)
+    if where is None:
         return 0
+    out, name = where
     report = measure(args.quick, args.repeats or (2 if args.quick else 3))
     if report is None:
         return 1

@@ -1,0 +1,3 @@
+from benchmarks.stress.cli import main
+
+main()
