@@ -62,7 +62,7 @@ def battery(*, quick: bool = False) -> StressReport:
 
 
 def free_motion(
-    system, *, effects=(), t1: float = 10.0, rtol: float = 1e-10
+    system, *, effects=(), t1: float = 10.0, rtol: float = 1e-10, spin: float | None = None
 ) -> tuple[StressRow, ...]:
     """The model moving from the cases' start (`start_of`): energy and spatial momentum,
     exactly conserved, to a bound set by the tolerance; orthogonality.
@@ -73,10 +73,12 @@ def free_motion(
     - `effects`: none by default (free motion); conservative shape effects keep both
       invariants, and a force that does work fails the energy row.
     - `t1`, `rtol`: horizon and tolerance.
+    - `spin`: the start's angular speed, rad/s (default `start_of`'s, 0.54): the high-spin
+      case of a model.
     """
-    system, state = start_of(system)
-    traj = simulate(Scene(system, list(effects)), state, t1, rtol=rtol, atol=rtol)
-    case = f"free_motion ({t1:g} s)"
+    system, state = start_of(system, spin=spin)
+    traj = simulate(Scene(system, list(effects)), state, jnp.asarray(t1), rtol=rtol, atol=rtol)
+    case = f"free_motion ({t1:g} s)" if spin is None else f"high_spin ({spin:g} rad/s, {t1:g} s)"
     return (
         energy_row(case, traj, 1e2 * rtol, f"{int(traj.stats['num_steps'])} steps"),
         momentum_row(case, traj, 1e2 * rtol),
@@ -124,7 +126,8 @@ def springs_motion(system, springs, *, t1: float = 2.0) -> tuple[StressRow, ...]
 
 
 def model_battery(scene: Scene, name: str = "the model") -> StressReport:
-    """Run the cases that apply to a model: gradients at zero twist, free motion, its springs
+    """Run the cases that apply to a model: gradients at zero twist, free motion (10 s, and
+    1 s spinning at 100 rad/s), its springs
     (`springs_of`: MuJoCo's joint and tendon springs, a scene's shape potentials), float32.
     Other effects of `scene` are not used.
 
@@ -142,6 +145,7 @@ def model_battery(scene: Scene, name: str = "the model") -> StressReport:
     rows = (
         *model_gradients(Scene(system), state),
         *free_motion(system),
+        *free_motion(system, t1=1.0, spin=1e2),
         *(springs_motion(system, springs) if springs else ()),
         *float32(system),
     )

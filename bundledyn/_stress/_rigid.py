@@ -103,8 +103,9 @@ def high_spin(*, rate: float = 1e4, turns: float = 1e3, rtol: float = 1e-10):
     r"""A body spinning at `rate` rad/s about a skew axis for `turns` turns: the rotation stays
     orthogonal to rounding, energy and momentum within bounds set by the tolerance alone.
 
-    Guards against jaxsim's float32 quaternion drift (NaN after 18 s) and embedding
-    integrators whose rotations leave SO(3) at high rates.
+    Guards against rotations that leave SO(3) at high rates (a pose integrated in its
+    matrix embedding, or a quaternion, drifts with every step taken) and against energy
+    errors that grow with the turns (MJX's tumbling box gained 35 % in 20 s).
 
     **Returns:**
 
