@@ -4,6 +4,7 @@ shipped model, with `--quick` (the suite's settings, no models) and `--report-on
 from benchmarks import _output
 from benchmarks._provenance import report_header
 from benchmarks._report import provenance_lines
+from bundledyn._stress._row import table_cell
 from bundledyn.stress import StressReport, StressRow
 
 DESCRIPTION = "The stress battery: hard cases, each against its bound."
@@ -88,5 +89,7 @@ def readme_table(report):
     lines = ["| case | its row nearest the bound | measured | bound |", "|---|---|---:|---:|"]
     for name, rows in groups:
         r = _nearest_bound(rows)
-        lines.append(f"| {name} | {r['shows']} | {r['measured']:.1e} | {r['bound']:.0e} |")
+        lines.append(
+            f"| {name} | {table_cell(r['shows'])} | {r['measured']:.1e} | {r['bound']:.0e} |"
+        )
     return "\n".join(lines)

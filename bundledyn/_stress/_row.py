@@ -29,6 +29,11 @@ class StressRow(eqx.Module):
         return math.isfinite(self.measured) and self.measured <= self.bound
 
 
+def table_cell(text: str) -> str:
+    """`text` safe in a Markdown table cell (its bars escaped: `|ω|` is not a column)."""
+    return text.replace("|", "\\|")
+
+
 def _verdict(row: StressRow) -> str:
     return "pass" if row.passed else "FAIL"
 
@@ -75,7 +80,7 @@ class StressReport(eqx.Module):
         for row in self.rows:
             note = f" ({row.note})" if row.note else ""
             lines.append(
-                f"| `{row.case}` | {row.shows}{note} | {row.measured:.1e} | {row.bound:.0e} "
-                f"| {_verdict(row)} |"
+                f"| `{row.case}` | {table_cell(row.shows + note)} | {row.measured:.1e} "
+                f"| {row.bound:.0e} | {_verdict(row)} |"
             )
         return "\n".join(lines)
