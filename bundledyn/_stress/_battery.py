@@ -29,7 +29,7 @@ from ._variational import variational_long_run
 CASES: tuple[tuple[Callable[..., tuple[StressRow, ...]], dict, dict], ...] = (
     (rigid_gradients, {}, {}),
     (dzhanibekov, {}, {}),
-    (variational_long_run, {}, {"steps": 10_000}),
+    (variational_long_run, {}, {"steps": 5_000}),
     (thin_rod, {}, {}),
     (mass_ratio, {}, {}),
     (stiff_springs, {}, {"t1": 0.5}),
