@@ -69,8 +69,27 @@ def test_affine_body_is_drawn_as_its_deformed_ellipsoid():
     E = R @ np.diag(np.asarray(drawn.solid.radii) ** 2) @ R.T * float(body.mass) / 5.0
     np.testing.assert_allclose(E, body.second_moment, atol=1e-14)
     q = jnp.array([0.1, -0.2, 0.05, 0.03, 0.0, 0.1])
-    (F,) = viz.body_maps(body, q)[None]
+    (F,) = viz.body_maps(body, q)  # one map per body, as for every system
     np.testing.assert_allclose(F[:3, :3], bd._systems._affine_body.stretch(q))
+
+
+def test_an_affine_bodys_motion_is_animated(tmp_path):
+    """The whole path for an affine body: simulate, animate (it raised an IndexError on
+    every affine trajectory), and the picture changes as the body turns and stretches."""
+    body = affine_body()
+    state = bd.State(jnp.eye(4), jnp.zeros(6), jnp.array([0.0, 2.0, 0.5, 0.0, 0.0, 0.0]),
+                     jnp.array([0.3, -0.2, 0.1, 0.0, 0.2, 0.0]))  # fmt: skip
+    saveat = diffrax.SaveAt(ts=jnp.linspace(0.0, 1.0, 6))
+    traj = bd.simulate(bd.Scene(body), state, 1.0, saveat=saveat)
+    path = viz.animate(traj, tmp_path / "affine.gif", frames=3, size=2.0, dpi=50)
+    assert picture_size(path) == (100, 100, 3)
+    from PIL import Image, ImageSequence
+
+    with Image.open(path) as image:
+        first, *_, last = [
+            np.asarray(f.convert("RGB"), float) for f in ImageSequence.Iterator(image)
+        ]
+    assert np.mean(np.any(first != last, axis=-1)) > 0.01  # the body moved in the picture
 
 
 def test_attitude_quaternions_are_continuous():

@@ -78,11 +78,12 @@ def drawn_bodies(system, solids=None) -> tuple[DrawnBody, ...]:
 
 
 def body_maps(system, q):
-    """Each body's frame in the section frame at shape `q`; an affine body's map is $U(q)$."""
+    """Each body's frame in the section frame at shape `q`, `(bodies, 4, 4)`; an affine
+    body's one map is $U(q)$."""
     if isinstance(system, AbstractMultibody):
         return system.body_poses(q)
     if isinstance(system, AffineBody):
-        return jnp.eye(4).at[:3, :3].set(stretch(q))
+        return jnp.eye(4).at[:3, :3].set(stretch(q))[None]
     return jnp.eye(4)[None]
 
 
