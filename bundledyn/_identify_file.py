@@ -258,9 +258,9 @@ def write_outputs(
     return written
 
 
-def identify_command(config, out: pathlib.Path, *, progress: bool, plots: bool) -> int:
-    """`bundledyn identify CONFIG.toml`: fit, print the report, write the outputs."""
-    file = IdentificationFile.load(config)
+def run_file(file: IdentificationFile, out: pathlib.Path, *, progress: bool, plots: bool):
+    """What `bundledyn identify` does with a loaded file: print what is fitted, fit, print
+    the report, write the outputs into the existing folder `out`; the `FitResult`."""
     if not out.is_dir():
         raise SceneFileError(f"{out}: the output folder does not exist.")
     print(f"bundledyn identify {file.path}")
@@ -272,4 +272,10 @@ def identify_command(config, out: pathlib.Path, *, progress: bool, plots: bool) 
     print(result.report())
     for path in write_outputs(file, result, out, plots=plots):
         print(f"  wrote {path}")
+    return result
+
+
+def identify_command(config, out: pathlib.Path, *, progress: bool, plots: bool) -> int:
+    """`bundledyn identify CONFIG.toml`: `run_file`; exit status 1 if the fit did not converge."""
+    result = run_file(IdentificationFile.load(config), out, progress=progress, plots=plots)
     return 0 if result.stats["converged"] else 1
