@@ -3,6 +3,9 @@
 import jax.numpy as jnp
 import numpy as np
 
+from .._scene import Scene
+from .._simulate import simulate
+from .._state import State
 from .._trajectory import Trajectory
 from ._row import StressRow
 
@@ -32,3 +35,12 @@ def orthogonality_row(case: str, traj: Trajectory, bound: float) -> StressRow:
     return StressRow(
         case, "rotation's orthogonality error", float(jnp.max(traj.orthogonality_error())), bound
     )
+
+
+def free_run(case: str, scene: Scene, state: State, *, t1: float, rtol: float):
+    """`scene` solved from `state` at `rtol`: the trajectory, and its energy and momentum rows
+    (bound 100 rtol; the energy row's note gives the steps). The horizon is traced, so one
+    compiled solve serves every case of the same model."""
+    traj = simulate(scene, state, jnp.asarray(t1), rtol=rtol, atol=rtol)
+    note = f"{int(traj.stats['num_steps'])} steps"
+    return traj, energy_row(case, traj, 1e2 * rtol, note), momentum_row(case, traj, 1e2 * rtol)

@@ -23,9 +23,9 @@ from .._state import State
 from .._systems._generic import GenericSystem
 from ._models import chain
 from ._row import StressRow
-from ._start import start_of
+from ._start import XI0, start_of
 
-STATE = dict(q=(0.3, -0.5), xi=(0.3, -0.2, 0.4, 0.1, 0.0, -0.2), qdot=(1.0, -2.0))
+STATE = dict(q=(0.3, -0.5), xi=XI0, qdot=(1.0, -2.0))
 
 
 def _raises(case, shows, run, error, *words) -> StressRow:

@@ -13,22 +13,17 @@ from .._simulate import simulate
 from .._state import State
 from .._systems._affine_body import AffineBody, stretch
 from .._systems._rigid_body import RigidBody
-from ._conservation import energy_row, momentum_row
+from ._conservation import energy_row, free_run, momentum_row
 from ._models import chain
 from ._row import StressRow
+from ._start import XI0
 
-XI0 = (0.3, -0.2, 0.4, 0.1, 0.0, -0.2)
 
-
-def _free_rows(case, system, q, qdot, *, t1, rtol, effects=(), xi=XI0, note=""):
-    """Energy and momentum rows of `system` moving freely from `(q, xi, qdot)`."""
+def _free_rows(case, system, q, qdot, *, t1, rtol, effects=(), xi=XI0):
+    """Energy and momentum rows of `system` moving from `(q, xi, qdot)` under `effects`."""
     state = State(jnp.eye(4), jnp.asarray(q, dtype=float), jnp.asarray(xi, dtype=float),
                   jnp.asarray(qdot, dtype=float))  # fmt: skip
-    # A traced horizon: one compiled solve serves every case of the same model.
-    traj = simulate(Scene(system, list(effects)), state, jnp.asarray(t1), rtol=rtol, atol=rtol)
-    steps = int(traj.stats["num_steps"])
-    note = (note.format(steps=steps) + "; " if note else "") + f"{steps} steps"
-    return energy_row(case, traj, 1e2 * rtol, note), momentum_row(case, traj, 1e2 * rtol)
+    return free_run(case, Scene(system, list(effects)), state, t1=t1, rtol=rtol)[1:]
 
 
 def thin_rod(*, t1: float = 10.0, rtol: float = 1e-10) -> tuple[StressRow, ...]:

@@ -11,6 +11,7 @@ from .._state import State
 from ._conservation import momentum_row
 from ._models import chain
 from ._row import StressRow
+from ._start import XI0
 
 # Newton iterations per step: the default 8 leaves a residual of about 1e-14 a step, which
 # 1e5 steps accumulate to 1e-9 in the momentum; 12 converge to rounding.
@@ -44,7 +45,7 @@ def variational_long_run(*, steps: int = 100_000, dt: float = 0.01) -> tuple[Str
     """
     system = chain((1.0, 1.5, 2.0))
     state = State(jnp.eye(4), jnp.array([0.3, -0.5]),
-                  jnp.array([0.3, -0.2, 0.4, 0.1, 0.0, -0.2]), jnp.array([1.0, -2.0]))  # fmt: skip
+                  jnp.asarray(XI0), jnp.array([1.0, -2.0]))  # fmt: skip
     t1 = steps * dt
     traj = simulate(Scene(system), state, t1, solver=VariationalMidpoint(iterations=ITERATIONS), dt0=dt,
                     saveat=diffrax.SaveAt(steps=True), max_steps=steps)  # fmt: skip
