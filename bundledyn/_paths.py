@@ -4,7 +4,7 @@ import pathlib
 
 _PACKAGE = pathlib.Path(__file__).parent
 
-#: Folder of the example models shipped with the package (MJCF and URDF).
 models = _PACKAGE / "models"
-#: Folder of the example scene files shipped with the package (TOML, see `SceneFile`).
+"""Folder of the example models shipped with the package (MJCF and URDF)."""
 scenes = _PACKAGE / "scenes"
+"""Folder of the example scene files shipped with the package (TOML, see `SceneFile`)."""

@@ -29,6 +29,7 @@ def _cpu_xla_flags(jaxlib_version: tuple[int, ...]) -> tuple[str, ...]:
 
 
 CPU_XLA_FLAGS = _cpu_xla_flags(_JAXLIB_VERSION)
+"""The XLA CPU flags `use_cpu_xla_flags` adds, those the installed jaxlib knows."""
 
 
 def use_cpu_xla_flags() -> bool:

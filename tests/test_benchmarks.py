@@ -215,12 +215,12 @@ def test_family_ratios_at_an_error():
     assert ratios({})["coarse"] is None
 
 
-def test_stress_results_redraw_and_the_readme_quotes_them(tmp_path):
+def test_stress_results_redraw_and_the_docs_quote_them(tmp_path):
     """The committed stress results rebuild the same markdown (`--report-only`), record the
-    code they measured, cover the battery and every shipped model, and the README's table is
-    the one they give."""
+    code they measured, cover the battery and every shipped model, and the hard-cases guide's
+    table is the one they give."""
     from benchmarks._output import RESULTS
-    from benchmarks.stress.cli import MODELS, main, readme_table
+    from benchmarks.stress.cli import MODELS, main, summary_table
 
     (tmp_path / "stress.json").write_bytes((RESULTS / "stress.json").read_bytes())
     main(["--report-only", "--out", str(tmp_path)])
@@ -229,5 +229,5 @@ def test_stress_results_redraw_and_the_readme_quotes_them(tmp_path):
     assert report["provenance"]["commit"] and not report["quick"]
     assert [b["model"] for b in report["reports"][1:]] == [*MODELS, "humanoid.xml"]
     assert all(r["passed"] for b in report["reports"] for r in b["rows"])
-    readme = (pathlib.Path(__file__).parents[1] / "README.md").read_text()
-    assert readme_table(report) in readme
+    guide = (pathlib.Path(__file__).parents[1] / "docs" / "how-to" / "stress.md").read_text()
+    assert summary_table(report) in guide

@@ -1,2 +1,2 @@
 """`python -m benchmarks.stress`: the stress battery and the shipped models' cases, written
-as the results file the README's table reads from."""
+as the results file the hard-cases guide's table reads from."""

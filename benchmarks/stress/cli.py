@@ -77,8 +77,8 @@ def _nearest_bound(rows):
     return max(rows, key=lambda r: r["measured"] / r["bound"] if r["bound"] else r["measured"])
 
 
-def readme_table(report):
-    """The README's table: each case of the shipped battery and each model, with the row
+def summary_table(report):
+    """The hard-cases guide's table (docs/how-to/stress.md): each case of the shipped battery and each model, with the row
     nearest its bound."""
     shipped, *models = report["reports"]
     cases = {}
