@@ -3,11 +3,16 @@
 import dataclasses
 import json
 import pathlib
+import re
 
 import numpy as np
 import pytest
 
 from benchmarks import accuracy_cost
+from benchmarks._output import RESULTS
+from benchmarks.accuracy_cost.sweep import default_solver
+
+BENCHMARKS = {"accuracy_cost", "speed", "speed_gpu", "family", "identification", "stress"}
 
 
 def test_accuracy_cost_quick_writes_its_report(tmp_path):
@@ -18,10 +23,48 @@ def test_accuracy_cost_quick_writes_its_report(tmp_path):
         errors = [p["error"] for p in series["points"]]
         assert all(p["ok"] for p in series["points"]) and np.all(np.isfinite(errors))
         assert errors[-1] < errors[0]  # a tighter setting is more accurate
+    default = default_solver().__name__
+    first = problem["series"][0]
+    assert report["default_solver"] == first["method"] == default
+    assert first["per_digit"]["points"] >= 3 and first["order"] == default_solver()().order(None)
     assert json.loads((tmp_path / "accuracy_cost_quick.json").read_text())["quick"] is True
-    assert "| RKMK54 |" in (tmp_path / "accuracy_cost_quick.md").read_text()
+    text = (tmp_path / "accuracy_cost_quick.md").read_text()
+    assert "| RKMK54 |" in text and f"| {default} | {first['order']} | ×" in text
     png = (tmp_path / "accuracy_cost_dzhanibekov.png").read_bytes()
     assert png[:8] == b"\x89PNG\r\n\x1a\n" and len(png) > 10_000
+
+
+def test_accuracy_cost_report_redraws_from_its_json(tmp_path):
+    """The committed accuracy-cost results rebuild the same markdown (`--report-only`), and
+    were measured with today's default solver: first in every scene, with its cost per digit."""
+    (tmp_path / "accuracy_cost.json").write_bytes((RESULTS / "accuracy_cost.json").read_bytes())
+    report = accuracy_cost.main(["--report-only", "--out", str(tmp_path)])
+    text = (tmp_path / "accuracy_cost.md").read_text()
+    assert text == (RESULTS / "accuracy_cost.md").read_text()
+    default = default_solver().__name__
+    assert report["default_solver"] == default and not report["quick"]
+    for problem in report["problems"]:
+        first = problem["series"][0]
+        assert first["method"] == default and "per_digit" in first
+    assert report["problems"][0]["series"][0]["per_digit"] is not None  # the Dzhanibekov body
+
+
+def test_every_benchmark_has_committed_results():
+    assert {path.stem for path in RESULTS.glob("*.json")} >= BENCHMARKS
+
+
+@pytest.mark.parametrize("name", sorted(path.stem for path in RESULTS.glob("*.json")))
+def test_results_record_their_code_and_name_the_default_solver(name):
+    """Every committed results file records the bundledyn version and the git commit it was
+    measured with, and names `bundledyn.simulate`'s default solver (found in the library,
+    so a change of default fails here until the results are measured again)."""
+    report = json.loads((RESULTS / f"{name}.json").read_text())
+    code = report.get("provenance") or {}
+    assert code.get("bundledyn"), f"{name}.json records no bundledyn version: measure it again"
+    assert re.fullmatch("[0-9a-f]{40}", code.get("commit") or ""), f"{name}.json records no commit"
+    default = default_solver().__name__
+    text = (RESULTS / f"{name}.json").read_text() + (RESULTS / f"{name}.md").read_text()
+    assert re.search(rf"\b{default}\b", text), f"{name} does not name the default, {default}"
 
 
 def test_speed_report_redraws_from_its_json(tmp_path):

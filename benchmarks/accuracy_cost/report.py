@@ -1,9 +1,14 @@
 """The accuracy–cost report: work–precision diagrams and the markdown of a run's JSON."""
 
-import numpy as np
-
 from benchmarks._errors import time_at_error as _time_at_error
 from benchmarks._report import fmt, provenance_lines, versions
+from benchmarks.accuracy_cost.digits import (
+    DIGIT_SHARE,
+    ERROR_CEILING,
+    FLOOR_MARGIN,
+    MIN_POINTS,
+    STEP_GROWTH,
+)
 from benchmarks.accuracy_cost.sweep import REFERENCE_RTOL
 
 TARGETS = (1e-3, 1e-4, 1e-6, 1e-8, 1e-10)
@@ -26,17 +31,6 @@ def plot(problem_result, path):
     return path.name
 
 
-def digit_costs(series):
-    """Time ratio per extra correct digit between successive points of one method."""
-    pts = [p for p in series["points"] if p["ok"] and p["error"] > 0]
-    rows = []
-    for a, b in zip(pts, pts[1:], strict=False):
-        digits = np.log10(a["error"] / b["error"])
-        if digits > 0.1:
-            rows.append((a["error"], b["error"], b["time"]["median"] / a["time"]["median"], digits))
-    return rows
-
-
 def time_at_error(series, target):
     """Interpolated (log–log) wall time at which a method reaches `target` error, or None."""
     return _time_at_error([p for p in series["points"] if p["ok"]], target)
@@ -50,22 +44,72 @@ def _time_cell(series, target):
     return f"≤ {min(reached) * 1e3:.3g}" if reached else "–"  # ≤: below target when loosest
 
 
-def time_to_error_table(series_list):
-    """Milliseconds each method needs to reach each target error, and RKMK54 over MuJoCo RK4."""
+def time_to_error_table(series_list, default):
+    """Milliseconds each method needs to reach each target error, and the default solver's
+    time over MuJoCo RK4's."""
     header = "| time [ms] to reach error | " + " | ".join(f"{e:.0e}" for e in TARGETS) + " |"
     lines = [header, "|---|" + "---|" * len(TARGETS)]
     for series in series_list:
         cells = [_time_cell(series, target) for target in TARGETS]
         lines.append(f"| {series['method']} | " + " | ".join(cells) + " |")
     by_name = {s["method"]: s for s in series_list}
-    peer, rkmk54 = by_name.get("MuJoCo RK4"), by_name.get("RKMK54")
-    if peer and rkmk54:
+    peer, ours = by_name.get("MuJoCo RK4"), by_name.get(default)
+    if peer and ours:
         ratios = []
         for target in TARGETS:
-            a, b = time_at_error(rkmk54, target), time_at_error(peer, target)
+            a, b = time_at_error(ours, target), time_at_error(peer, target)
             ratios.append("–" if a is None or b is None else f"{a / b:.2g}")
-        lines.append("| **RKMK54 / MuJoCo RK4** | " + " | ".join(ratios) + " |")
+        lines.append(f"| **{default} / MuJoCo RK4** | " + " | ".join(ratios) + " |")
     return lines
+
+
+def _digit_row(series):
+    cost, p = series["per_digit"], series["order"]
+    predicted = f"{p} | ×{10 ** (1 / p):.2f}"
+    if cost is None:
+        return f"| {series['method']} | {predicted} | – | – | fewer than {MIN_POINTS} points in range |"
+    loose, tight = cost["settings"]
+    return (
+        f"| {series['method']} | {predicted} | ×{cost['time']:.2f} | ×{cost['steps']:.2f} "
+        f"| {cost['errors'][0]:.0e} → {cost['errors'][1]:.0e} (rtol {loose:.0e} → {tight:.0e}, "
+        f"{cost['points']} points) |"
+    )
+
+
+def digit_cost_table(result):
+    """Each adaptive method's cost per extra digit of error against what its order predicts."""
+    lines = [
+        "| method | order p | 10^(1/p) | time per digit | steps per digit | fitted over errors |",
+        "|---|---|---|---|---|---|",
+    ]
+    return lines + [_digit_row(s) for s in result["series"] if not s["fixed"]]
+
+
+def _setting(series, point):
+    return f"dt={point['setting']:.1e}" if series["fixed"] else f"rtol={point['setting']:.0e}"
+
+
+def _point_row(series, p):
+    if "raised" in p:
+        return f"| {series['method']} | {_setting(series, p)} | raised | – | – | – | – | – |"
+    energy = p.get("energy_drift", float("nan"))
+    momentum = p.get("momentum_drift", float("nan"))
+    return (
+        f"| {series['method']} | {_setting(series, p)} | {p['error']:.1e} | {fmt(p['time'], 1e3)} "
+        f"| {p['steps']} | {p['evaluations']} | {energy:.1e} | {momentum:.1e} |"
+    )
+
+
+def _raised_lines(result):
+    """Each message a solve raised with, and the points that raised it."""
+    raised = {}
+    for series in result["series"]:
+        for p in series["points"]:
+            if "raised" in p:
+                raised.setdefault(p["raised"], []).append(
+                    f"{series['method']} {_setting(series, p)}"
+                )
+    return [f"Raised ({', '.join(points)}): {message}" for message, points in raised.items()]
 
 
 def _points_table(result):
@@ -73,23 +117,16 @@ def _points_table(result):
         "| method | setting | error | time [ms] | steps | evals | energy drift | momentum drift |",
         "|---|---|---|---|---|---|---|---|",
     ]
-    for series in result["series"]:
-        for p in series["points"]:
-            setting = f"dt={p['setting']:.1e}" if series["fixed"] else f"rtol={p['setting']:.0e}"
-            energy = p.get("energy_drift", float("nan"))
-            momentum = p.get("momentum_drift", float("nan"))
-            lines.append(
-                f"| {series['method']} | {setting} | {p['error']:.1e} | {fmt(p['time'], 1e3)} "
-                f"| {p['steps']} | {p['evaluations']} | {energy:.1e} | {momentum:.1e} |"
-            )
-    return lines
+    lines += [_point_row(series, p) for series in result["series"] for p in series["points"]]
+    raised = _raised_lines(result)
+    return lines + (["", *raised] if raised else [])
 
 
-def _problem_section(result):
+def _problem_section(result, default):
     lines = [f"## {result['title']}", ""]
     if result.get("figure"):
         lines += [f"![work–precision]({result['figure']})", ""]
-    lines += [
+    return lines + [
         f"Reference: RKMK 5(4) vs Dopri8 at rtol {REFERENCE_RTOL:g} agree to "
         f"{result['reference_agreement']:.1e} (the error floor).",
         "",
@@ -100,15 +137,13 @@ def _problem_section(result):
             f"{s['method']} {s['compile']:.1f} s" for s in result["series"] if s["family"] != "peer"
         ),
         "",
-        *time_to_error_table(result["series"]),
+        *time_to_error_table(result["series"], default),
+        "",
+        "Cost per extra digit of accuracy:",
+        "",
+        *digit_cost_table(result),
         "",
     ]
-    rkmk54 = next((s for s in result["series"] if s["method"] == "RKMK54"), None)
-    costs = digit_costs(rkmk54) if rkmk54 else []
-    if costs:
-        steps = (f"{e0:.0e}→{e1:.0e}: ×{r:.2f} per {d:.1f} digits" for e0, e1, r, d in costs)
-        lines += ["RKMK 5(4), cost of each extra digit: " + ", ".join(steps) + ".", ""]
-    return lines
 
 
 def _cell(v):
@@ -117,10 +152,10 @@ def _cell(v):
     return f"{v:.3g}" if isinstance(v, float) else str(v)
 
 
-EXTRAS = (
-    ("throughput", "Throughput of vmapped rollouts (chain, 1 s, rtol 1e-6)"),
-    ("gradients", "Gradient cost (chain, 1 s, rtol 1e-8)"),
-    ("compile", "Compile time of `simulate` against the number of bodies"),
+EXTRAS = (  # measured with `bundledyn.simulate`'s default solver
+    ("throughput", "Throughput of vmapped rollouts ({solver}, chain, 1 s, rtol 1e-6)"),
+    ("gradients", "Gradient cost ({solver}, chain, 1 s, rtol 1e-8)"),
+    ("compile", "Compile time of `simulate` ({solver}) against the number of bodies"),
 )
 
 
@@ -131,15 +166,35 @@ def _extras_section(report):
         if not rows:
             continue
         columns = list(dict.fromkeys(k for row in rows for k in row))
-        lines += [f"## {title}", "", "| " + " | ".join(columns) + " |", "|" + "---|" * len(columns)]
+        lines += [
+            f"## {title.format(solver=report['default_solver'])}",
+            "",
+            "| " + " | ".join(columns) + " |",
+            "|" + "---|" * len(columns),
+        ]
         lines += ["| " + " | ".join(_cell(row.get(k, "–")) for k in columns) + " |" for row in rows]
         lines.append("")
     return lines
 
 
+def _digit_cost_legend():
+    sentences = (
+        "Cost per extra digit: for each adaptive method, the time (and step) ratio per decade "
+        "of error, 10^-slope of a least-squares line of log time (log steps) against log error "
+        f"over the sweep's asymptotic range: errors from {FLOOR_MARGIN:g}× the reference floor "
+        f"up to {ERROR_CEILING:.0e}, the longest run of successive tolerances each taking "
+        f"≥ {STEP_GROWTH:g}× the steps of the one before and gaining ≥ {DIGIT_SHARE:g} of the "
+        "digits it asks for (flat steps are bound by stability, a stalled error by rounding).",
+        "An order-p method's error goes as h^p, so its steps grow by 10^(1/p) per digit: the "
+        "column of what the order predicts, p as the solver class declares it. Its time grows "
+        "alike once the fixed cost of a solve is small.",
+    )
+    return [" ".join(sentences), ""]
+
+
 def markdown(report):
     """The report's markdown: provenance, every problem's table and diagram, the extras."""
-    env = report["environment"]
+    env, default = report["environment"], report["default_solver"]
     extras_env = report.get("extras_environment")
     lines = [
         "# What accuracy costs in time",
@@ -154,10 +209,14 @@ def markdown(report):
             if extras_env
             else []
         ),
+        f"`bundledyn.simulate`'s default solver, **{default}**, is swept first and comes first",
+        "in every table and diagram.",
+        "",
         "Times are medians of the runs after compilation (min–max in brackets); errors are",
         "the largest deviation of the state at t1 from the reference (`benchmarks/_errors.py`).",
         "",
+        *_digit_cost_legend(),
     ]
     for result in report["problems"]:
-        lines += _problem_section(result)
+        lines += _problem_section(result, default)
     return "\n".join(lines + _extras_section(report))

@@ -1,7 +1,9 @@
 """Every method swept over its tolerances or steps on one problem, against a reference."""
 
 import dataclasses
+import time
 from collections.abc import Callable
+from unittest import mock
 
 import diffrax
 import jax
@@ -10,13 +12,13 @@ import jax.numpy as jnp
 import bundledyn as bd
 from benchmarks._errors import final_state, state_error
 from benchmarks._timing import timed
-from benchmarks.accuracy_cost.problems import Problem
+from benchmarks.accuracy_cost.problems import Problem, dzhanibekov
 
 MAX_STEPS = 200_000
 REFERENCE_RTOL = 1e-13
 FULL_RTOLS = tuple(10.0**-k for k in range(3, 13))
 FULL_STEPS = (25, 50, 100, 200, 400, 800, 1600)  # steps over [0, t1] for fixed-step methods
-QUICK_RTOLS = (1e-4, 1e-7, 1e-10)
+QUICK_RTOLS = (1e-5, 1e-7, 1e-9, 1e-11)  # three within digits.ERROR_CEILING: a cost per digit
 QUICK_STEPS = (50, 200, 800)
 
 
@@ -34,6 +36,8 @@ METHODS = {
     "LieEuler": Method("LieEuler", bd.LieEuler, True, 1, "Lie group"),
     "RKMK4": Method("RKMK4", bd.RKMK4, True, 4, "Lie group"),
     "RKMK54": Method("RKMK54", bd.RKMK54, False, 7, "Lie group"),
+    # 13 of its 14 stages: saving only at t1, `simulate` skips the dense output's stage.
+    "RKMK87": Method("RKMK87", bd.RKMK87, False, 13, "Lie group"),
     "VariationalMidpoint": Method(
         "VariationalMidpoint", bd.VariationalMidpoint, True, 8, "Lie group"
     ),
@@ -46,15 +50,44 @@ METHODS = {
 }
 
 
-def methods_for(problem: Problem, quick: bool):
+class _Handed(Exception):
+    """Carries the solver `bd.simulate` hands to diffrax, ending the call there."""
+
+
+def default_solver():
+    """The solver class `bd.simulate` integrates with when given none.
+
+    bundledyn names its default only inside `simulate`, so this calls it on the
+    Dzhanibekov body and stops it where it hands its solver to `diffrax.diffeqsolve`;
+    uncompiled, since a compiled call seen before would not reach diffrax again.
+    """
+
+    def handed(terms, solver, *args, **kwargs):
+        raise _Handed(type(solver))
+
+    problem = dzhanibekov()
+    with mock.patch.object(diffrax, "diffeqsolve", handed):
+        try:
+            # Tolerances that float32 allows: x64 may not be on.
+            bd.simulate.__wrapped__(
+                problem.scene, problem.state, problem.t1, rtol=1e-3, atol=1e-3, dt0=problem.t1
+            )
+        except _Handed as handed_over:
+            return handed_over.args[0]
+    raise RuntimeError("bd.simulate returned without calling diffrax.diffeqsolve")
+
+
+def methods_for(problem: Problem, quick: bool, default: str):
+    """The methods swept on `problem`, `default` (the library's default solver) first."""
     if quick:
-        return ["RKMK54", "RKMK4", "Tsit5"]
-    names = ["LieEuler", "RKMK4", "RKMK54", "Tsit5", "Dopri5", "Dopri8"]
-    if isinstance(problem.scene.shape, bd.Free) and problem.scene.system.shape_dim:
-        names.insert(3, "VariationalMidpoint")
-    if problem.stiff:
-        names.append("Kvaerno5")
-    return names
+        names = ["RKMK54", "RKMK4", "Tsit5"]
+    else:
+        names = ["LieEuler", "RKMK4", "RKMK54", "Tsit5", "Dopri5", "Dopri8"]
+        if isinstance(problem.scene.shape, bd.Free) and problem.scene.system.shape_dim:
+            names.insert(3, "VariationalMidpoint")
+        if problem.stiff:
+            names.append("Kvaerno5")
+    return [default, *(name for name in names if name != default)]
 
 
 def _drift(series, relative):
@@ -102,40 +135,74 @@ def reference(problem: Problem):
     return states[0], state_error(states[0], states[1])
 
 
+def _compile(solve, setting):
+    """Seconds to compile `solve`, which `jax.jit` then reuses: timed apart from the runs,
+    since a first setting whose solve raises would take its compile time with it."""
+    start = time.perf_counter()
+    solve.lower(jnp.asarray(setting)).compile()
+    return time.perf_counter() - start
+
+
+def _measured(method: Method, setting, out, runs, ref):
+    """A sweep point from a solve's output `out` and the summary of its `runs`."""
+    state, energy, momentum, steps, ok = out
+    steps = int(steps)
+    return {
+        "setting": setting,
+        "ok": bool(ok),
+        "error": state_error(state, ref) if bool(ok) else float("nan"),
+        "energy_drift": float(energy),
+        "momentum_drift": float(momentum),
+        "steps": steps,
+        "evaluations": steps * method.stages,
+        "time": runs,
+    }
+
+
+def _raised(setting, error):
+    """A sweep point whose solve raised, with the message of the check that stopped it
+    (equinox's, inside the compiled solve) or else the error's first line."""
+    lines = str(error).splitlines()
+    check = (line.split(": ", 1)[1] for line in lines if "EquinoxRuntimeError: " in line)
+    return {"setting": setting, "ok": False, "error": float("nan"), "raised": next(check, lines[0])}
+
+
+def _log(problem: Problem, method: Method, point):
+    setting = f"{'dt' if method.fixed else 'rtol'}={point['setting']:8.1e}"
+    if "raised" in point:
+        outcome = f"raised: {point['raised']}"
+    else:
+        outcome = (
+            f"error={point['error']:8.1e} time={point['time']['median'] * 1e3:9.2f} ms "
+            f"steps={point['steps']}"
+        )
+    print(f"  {problem.name:16} {method.name:19} {setting} {outcome}", flush=True)
+
+
 def sweep(problem: Problem, method: Method, ref, quick: bool, repeats: int):
+    """`method`'s series on `problem`: a point per tolerance (adaptive) or step (fixed)."""
     if method.fixed:
         settings = [problem.t1 / n for n in (QUICK_STEPS if quick else FULL_STEPS)]
     else:
         settings = [r for r in (QUICK_RTOLS if quick else FULL_RTOLS) if r >= method.tightest]
     solve = make_solve(problem, method)
-    points, compile_time = [], None
+    compile_time = _compile(solve, settings[0])
+    points = []
     for setting in settings:
-        out, compiled, runs = timed(solve, jnp.asarray(setting), repeats=repeats)
-        compile_time = compiled if compile_time is None else compile_time
-        state, energy, momentum, steps, ok = out
-        steps = int(steps)
-        points.append(
-            {
-                "setting": setting,
-                "ok": bool(ok),
-                "error": state_error(state, ref) if bool(ok) else float("nan"),
-                "energy_drift": float(energy),
-                "momentum_drift": float(momentum),
-                "steps": steps,
-                "evaluations": steps * method.stages,
-                "time": runs,
-            }
-        )
-        print(
-            f"  {problem.name:16} {method.name:19} {'dt' if method.fixed else 'rtol'}={setting:8.1e} "
-            f"error={points[-1]['error']:8.1e} time={points[-1]['time']['median'] * 1e3:9.2f} ms "
-            f"steps={steps}",
-            flush=True,
-        )
+        try:
+            out, _, runs = timed(solve, jnp.asarray(setting), repeats=repeats)
+            point = _measured(method, setting, out, runs, ref)
+        except jax.errors.JaxRuntimeError as error:
+            # A fixed step too long for the scene: the state blows up, and bundledyn raises
+            # where its field stops being finite (`AbstractRKMK`), `throw=False` or not.
+            point = _raised(setting, error)
+        points.append(point)
+        _log(problem, method, point)
     return {
         "method": method.name,
         "family": method.family,
         "fixed": method.fixed,
+        "order": method.make().order(None),  # the order the solver class declares
         "compile": compile_time,
         "points": points,
     }
