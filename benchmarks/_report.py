@@ -21,5 +21,7 @@ def provenance_lines(report, key="provenance", what="Code"):
         code = "outside a git checkout"
     else:
         code = f"commit `{p['commit'][:12]}`"
-        code += " with uncommitted changes" if p["dirty"] else " (clean)"
+        code += {True: " with uncommitted changes", False: " (clean)"}.get(p["dirty"], "")
+    if p.get("note"):
+        code += f" ({p['note']})"
     return [f"{what}: bundledyn {p['bundledyn']}, {code}; run {p['date']} on {p['machine']}.", ""]

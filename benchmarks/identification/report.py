@@ -53,6 +53,9 @@ def markdown(report):
         "bundledyn names, how many mujoco.sysid parameters have an interval that is infinite "
         "or wider than its box (of which infinite); **conv.**, fits that converged.",
         "",
+        "bundledyn fits by multiple shooting with `RKMK87` (the default solver), in fixed "
+        "steps onto the sample times (`bundledyn/_identify/_shooting.py`).",
+        "",
     ]
     for name, result in report["cases"].items():
         case = result["case"]
