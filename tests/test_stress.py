@@ -62,6 +62,18 @@ def test_a_field_that_is_nan_where_the_step_starts_is_named():
         bd.simulate(bd.Scene(system, [broken]), state, 1.0)
 
 
+def test_fixed_steps_too_large_for_the_motion_are_told_to_shrink():
+    """Lie–Euler at dt = 0.8 on a body spinning at 2 rad/s runs away until its field
+    overflows; the message names that case too, not only a broken model."""
+    import diffrax
+
+    body = bd.RigidBody(1.0, [0.0, 0.0, 0.0], np.diag([1.0, 2.0, 3.0]))
+    state = bd.State(jnp.eye(4), (), jnp.array([0.01, 2.0, 0.01, 0.0, 0.0, 0.0]), ())
+    fixed = dict(dt0=0.8, stepsize_controller=diffrax.ConstantStepSize())
+    with pytest.raises(Exception, match="take smaller steps"):
+        bd.simulate(bd.Scene(body), state, 20.0, solver=bd.LieEuler(), **fixed)
+
+
 @pytest.mark.parametrize(
     "argv, message",
     [

@@ -21,7 +21,9 @@ __all__ = ["body_field", "checked_start", "from_chart", "recharted"]
 NONFINITE_FIELD = (
     "bundledyn: the vector field is NaN or infinite at a finite state that the solver "
     "accepted, where a step starts: an effect (a force, wrench or potential) returned NaN "
-    "or Inf there, or the system's metric is singular there (a degenerate model)."
+    "or Inf there, or the system's metric is singular there (a degenerate model). With "
+    "fixed steps it can also be the solve's own doing: a step too large for the motion "
+    "carries the state where the field overflows; take smaller steps."
 )
 COLLAPSED_STEP = (
     "bundledyn: the step size fell to the rounding error of the time (100 ulps): the "
