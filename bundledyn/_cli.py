@@ -52,23 +52,36 @@ class _Failure(Exception):
 
 
 def _summary(scene_file, traj, elapsed):
+    """Print what was simulated and its diagnostics, each quantity with the frame it is in:
+    poses in the scene's frame, energy and spatial momentum in the Galilean frame."""
     import numpy as np
+
+    from ._viz._frame_names import GALILEAN, frame_name
 
     energy = np.asarray(traj.energy())
     momentum = np.asarray(traj.spatial_momentum())
-    system = scene_file.scene.system
+    scene = scene_file.scene
     print(
-        f"  system: {type(system).__name__}, {system.shape_dim} shape coordinates; "
-        f"{len(scene_file.scene.effects)} effects; shape "
-        f"{type(scene_file.scene.shape).__name__.lower()}"
+        f"  system: {type(scene.system).__name__}, {scene.system.shape_dim} shape coordinates; "
+        f"{len(scene.effects)} effects; shape {type(scene.shape).__name__.lower()}; "
+        f"seen from {frame_name(scene)}"
     )
     print(
         f"  simulated {scene_file.t0:g}..{scene_file.t1:g} s with {type(scene_file.solver).__name__}"
         f": {int(traj.stats['num_steps'])} steps, {elapsed:.1f} s including compilation"
     )
-    print(f"  energy change E(t1) - E(t0): {energy[-1] - energy[0]:.2e} (E(t0) = {energy[0]:.6g})")
-    print(f"  largest change of spatial momentum: {np.abs(momentum - momentum[0]).max():.2e}")
-    print(f"  rotation orthogonal to {float(traj.orthogonality_error().max()):.1e}")
+    print(
+        f"  energy in {GALILEAN}: E(t1) - E(t0) = {energy[-1] - energy[0]:.2e} "
+        f"(E(t0) = {energy[0]:.6g} J)"
+    )
+    print(
+        f"  spatial momentum in {GALILEAN} (about its origin): largest change "
+        f"{np.abs(momentum - momentum[0]).max():.2e}"
+    )
+    print(
+        f"  poses in {frame_name(scene)}: rotations orthogonal to "
+        f"{float(traj.orthogonality_error().max()):.1e}"
+    )
 
 
 def _write_pictures(scene_file, traj, out, stem):
@@ -180,6 +193,8 @@ def demo(args) -> int:
     import bundledyn as bd
     from bundledyn import lie
 
+    from ._viz._frame_names import GALILEAN, frame_name
+
     scene_file = bd.SceneFile.load(bd.scenes / "falling_cat.toml")
     cat, shape = scene_file.scene.system, scene_file.scene.shape
     assert isinstance(shape, bd.Prescribed)  # the scene file prescribes the cat's bending
@@ -190,15 +205,17 @@ def demo(args) -> int:
     _summary(scene_file, traj, elapsed)
     rotation = np.asarray(lie.so3_log(traj.g[-1, :3, :3]))
     angle = np.linalg.norm(rotation)
+    frame = frame_name(scene_file.scene)
     print(
         f"  net rotation after one shape loop: {np.degrees(angle):.2f} deg about "
-        f"{np.round(rotation / angle, 3)}"
+        f"{np.round(rotation / angle, 3) + 0.0} in {frame}"
     )
     period = scene_file.t1 - scene_file.t0
     holonomy = bd.horizontal_lift(cat, lambda s: bend(scene_file.t0 + s * period), steps=128)
     print(
         "  check: the holonomy of the shape loop (xi = -A qdot integrated on its own) equals "
-        f"the final pose to {np.abs(np.asarray(holonomy) - np.asarray(traj.g[-1])).max():.1e}"
+        f"the final pose in {frame} to "
+        f"{np.abs(np.asarray(holonomy) - np.asarray(traj.g[-1])).max():.1e}"
     )
     reduced = jax.vmap(lambda q, qd: 0.5 * qd @ bd.shape_metric(cat, q) @ qd)(traj.q, traj.qdot)
     print(
@@ -206,7 +223,8 @@ def demo(args) -> int:
         f"to {float(jnp.max(jnp.abs(traj.energy() - reduced))):.1e}"
     )
     print(
-        f"  check: largest spatial momentum component: {np.abs(traj.spatial_momentum()).max():.1e}"
+        f"  check: largest component of the spatial momentum in {GALILEAN}: "
+        f"{np.abs(traj.spatial_momentum()).max():.1e}"
     )
     report = bd.checks.galilean_invariance(cat, jax.random.key(0), n=64)
     print("  " + str(report).replace("\n", "\n  "))

@@ -10,8 +10,12 @@ headless.
 - `plot_work_precision(series)`: error against wall time, one line per method.
 - `plot_identification(result)`: an identification's residuals before and after, the
   information's singular values, and the estimates' errors or intervals.
-- `animate(trajectory, path)`: the bodies in 3D with the frame's axes and the trail of the
-  centre of mass, as a GIF.
+- `animate(trajectory, path)`: the bodies in 3D, marked so that their turn shows, seen along
+  the axis the motion turns about, with the angle turned against time, as a GIF.
+- `turn_axis(g)`, `turn_angles(g, axis)`: the axis a motion turns about and the angle turned.
+
+Every title names the frame its quantities are in (`frame_name`): poses in the scene's
+frame, energy and spatial momentum in the Galilean frame.
 """
 
 try:
@@ -22,9 +26,11 @@ except ImportError as error:  # pragma: no cover - depends on the environment
     ) from error
 
 from ._viz._animation import DrawnBody, animate, body_maps, drawn_bodies
+from ._viz._attitude import attitude_quaternions, turn_angles, turn_axis
 from ._viz._canvas import new_figure, save_figure
+from ._viz._frame_names import frame_name
 from ._viz._identification import plot_identification
-from ._viz._plots import attitude_quaternions, plot_drift, plot_motion, plot_work_precision
+from ._viz._plots import plot_drift, plot_motion, plot_work_precision
 
 __all__ = [
     "DrawnBody",
@@ -32,10 +38,13 @@ __all__ = [
     "attitude_quaternions",
     "body_maps",
     "drawn_bodies",
+    "frame_name",
     "new_figure",
     "plot_drift",
     "plot_identification",
     "plot_motion",
     "plot_work_precision",
     "save_figure",
+    "turn_angles",
+    "turn_axis",
 ]

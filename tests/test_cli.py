@@ -69,13 +69,55 @@ def test_run_writes_pictures_of_the_expected_size(ran):
     _, out, _ = ran
     assert picture_size(out / "spin_motion.png") == (700, 450, 1)
     assert picture_size(out / "spin_drift.png") == (700, 400, 1)
-    assert picture_size(out / "spin.gif") == (320, 320, 6)
+    assert picture_size(out / "spin.gif") == (320, 400, 6)
     assert sorted(p.name for p in out.iterdir()) == [
         "spin.gif",
         "spin.npz",
         "spin_drift.png",
         "spin_motion.png",
     ]
+
+
+# The same box in gravity, seen from a frame falling with it (Theorem 3.4).
+FALLING = """
+[system]
+type = "rigid_body"
+mass = 1.0
+solid = "box"
+size = [0.6, 0.4, 0.2]
+
+[[effects]]
+type = "gravity"
+
+[frame]
+type = "free_falling"
+
+[initial]
+xi = [0.05, 6.0, 0.05, 0.0, 0.0, 0.0]
+
+[time]
+t1 = 0.5
+saves = 6
+
+[solver]
+method = "LieEuler"
+dt0 = 0.01
+"""
+
+
+def test_run_names_the_frame_of_every_printed_quantity(tmp_path, capsys):
+    """Seen from a falling frame, the poses are in that frame while the energy and spatial
+    momentum are in the Galilean frame: each printed line says which."""
+    scene = tmp_path / "falling.toml"
+    scene.write_text(FALLING)
+    assert main(["run", str(scene), "--out", str(tmp_path), "--no-pictures"]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    printed = {line.split()[0]: line for line in lines[1:] if not line.startswith("  wrote")}
+    assert printed["system:"].endswith("seen from the falling frame")
+    assert printed["energy"].startswith("  energy in the Galilean frame: E(t1) - E(t0) = ")
+    assert printed["spatial"].startswith("  spatial momentum in the Galilean frame (about its")
+    assert printed["poses"].startswith("  poses in the falling frame: rotations orthogonal to")
+    assert set(printed) == {"system:", "simulated", "energy", "spatial", "poses"}
 
 
 def test_bad_scene_exits_with_a_message_and_writes_nothing(tmp_path, capsys):
@@ -118,6 +160,8 @@ def test_demo_summarises_and_checks(tmp_path, capsys):
     out = capsys.readouterr().out
     angle = float(out.split("net rotation after one shape loop: ")[1].split(" deg")[0])
     assert 10.0 < angle < 180.0
+    (turn,) = [line for line in out.splitlines() if "net rotation" in line]
+    assert turn.endswith("] in the Galilean frame")
     assert "PASSED" in out and not (tmp_path / "demo").exists()
 
 

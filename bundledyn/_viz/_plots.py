@@ -1,13 +1,13 @@
 """Diagnostics against time, and work–precision diagrams."""
 
-import jax
 import numpy as np
 from matplotlib.figure import Figure
 from matplotlib.ticker import NullFormatter
 
-from .. import lie
 from .._trajectory import Trajectory
+from ._attitude import attitude_quaternions
 from ._canvas import new_figure, save_figure
+from ._frame_names import GALILEAN, frame_name
 
 _TWIST_LABELS = ("$L_x$", "$L_y$", "$L_z$", "$p_x$", "$p_y$", "$p_z$")
 
@@ -27,7 +27,8 @@ def plot_drift(trajectory: Trajectory, *, path=None) -> Figure:
     r"""Energy and spatial momentum minus their initial values, against time.
 
     Both are conserved by a free system with conservative effects (seed 004, (2.6) with
-    $\mathbf F = 0$): the curves show the integrator's error.
+    $\mathbf F = 0$): the curves show the integrator's error. Both are in the Galilean
+    frame whatever the scene's frame, and the title says so.
 
     **Arguments:**
 
@@ -46,10 +47,14 @@ def plot_drift(trajectory: Trajectory, *, path=None) -> Figure:
     top, bottom = fig.subplots(2, 1, sharex=True)
     top.plot(t, energy - energy[0], color="k")
     top.set_ylabel("$E(t) - E(0)$ [J]")
-    top.set_title(f"energy and momentum minus their start ($E(0)$ = {energy[0]:.6g} J)", fontsize=9)
+    top.set_title(
+        f"energy and spatial momentum in {GALILEAN}, minus their start "
+        f"($E(0)$ = {energy[0]:.6g} J)",
+        fontsize=9,
+    )
     for k, label in enumerate(_TWIST_LABELS):
         bottom.plot(t, momentum[:, k] - momentum[0, k], label=label)
-    bottom.set_ylabel("spatial momentum\nminus its start")
+    bottom.set_ylabel("spatial momentum\n(about the origin)\nminus its start")
     bottom.set_xlabel("t [s]")
     bottom.legend(fontsize=7, ncol=6)
     for ax in (top, bottom):
@@ -58,20 +63,10 @@ def plot_drift(trajectory: Trajectory, *, path=None) -> Figure:
     return _maybe_save(fig, path)
 
 
-def attitude_quaternions(g) -> np.ndarray:
-    """Unit quaternions $(w, x, y, z)$ of the poses `g` `(n, 4, 4)`, signs made continuous.
-
-    $q$ and $-q$ are the same rotation; flipping each sign to stay close to the previous
-    sample turns the attitude into a continuous curve (seed 000, Euler parameters).
-    """
-    quats = np.array(jax.vmap(lie.quaternion_from_rotation)(g[:, :3, :3]))
-    turns = np.where(np.sum(quats[1:] * quats[:-1], axis=-1) < 0, -1.0, 1.0)
-    quats[1:] *= np.cumprod(turns)[:, None]
-    return quats
-
-
 def plot_motion(trajectory: Trajectory, *, path=None) -> Figure:
     """Shape coordinates, attitude (Euler parameters) and position of the section frame.
+
+    The attitude and position are in the scene's frame (the title names it).
 
     **Arguments:**
 
@@ -104,6 +99,8 @@ def plot_motion(trajectory: Trajectory, *, path=None) -> Figure:
     axes[-1].set_ylabel("position [m]")
     axes[-1].set_xlabel("t [s]")
     axes[-1].legend(fontsize=7, ncol=3)
+    pose = f"the section frame's pose in {frame_name(trajectory.scene)}"
+    axes[0].set_title(f"shape, and {pose}" if q.shape[1] else pose, fontsize=9)
     for ax in axes:
         ax.grid(alpha=0.3)
     return _maybe_save(fig, path)
