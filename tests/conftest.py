@@ -40,3 +40,23 @@ def optimized_compilation():
 @pytest.fixture
 def key():
     return jax.random.key(20261121)
+
+
+# The longest files first. With `--dist loadfile` a file is one unit of work, handed to the
+# worker that frees first in collection order; a long file collected late leaves the other
+# worker idle at the end of the run (longest-first is the classic remedy for that).
+LONGEST_FIRST = (
+    "test_notebooks.py",
+    "test_identify_mujoco.py",
+    "test_stress_models.py",
+    "test_identify.py",
+    "test_stress.py",
+    "test_identify_rigid.py",
+    "test_docs.py",
+    "test_invariance_dynamics.py",
+)
+
+
+def pytest_collection_modifyitems(items):
+    rank = {name: i for i, name in enumerate(LONGEST_FIRST)}
+    items.sort(key=lambda item: rank.get(item.path.name, len(LONGEST_FIRST)))
