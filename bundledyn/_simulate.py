@@ -18,6 +18,9 @@ from ._state import State
 from ._term import SceneTerm
 from ._trajectory import Trajectory
 
+# The solver `simulate` integrates with when given none (benchmarks read it from here).
+DEFAULT_SOLVER = RKMK87
+
 
 @jax.custom_jvp
 def _polar_factor(A):
@@ -141,7 +144,7 @@ def simulate(
 
     A `Trajectory`.
     """
-    solver = RKMK87() if solver is None else solver
+    solver = DEFAULT_SOLVER() if solver is None else solver
     saveat = diffrax.SaveAt(t0=True, t1=True) if saveat is None else saveat
     if isinstance(solver, AbstractRKMK) and not _interpolates(saveat, event):
         solver = dataclasses.replace(solver, dense_output=False)

@@ -4,11 +4,11 @@ For six scenes (`problems`: a Dzhanibekov rigid body, the free MJCF chain `chain
 affine body on a shape spring, the falling cat with a prescribed shape loop, a 10-body
 chain in a gravity gradient, and a stiff chain whose spring is 10⁶ times stiffer than its
 soft one) this benchmark sweeps every method over its tolerances (adaptive) or step sizes
-(fixed), `bundledyn.simulate`'s default solver first (`sweep.default_solver`: whichever
-class `simulate` hands to diffrax), and records, for each point (`sweep`): the error of
-the state at t1 against a reference solution, the energy and momentum drift, the wall time
-(median, min and max of ≥ 5 runs after compilation), the steps and vector-field
-evaluations, and the compile time; a fixed step too long for a scene makes its solve raise,
+(fixed), `bundledyn.simulate`'s default solver first (`sweep.default_solver`: the
+library's `DEFAULT_SOLVER`, the class `simulate` integrates with), and records, for each
+point (`sweep`): the error of the state at t1 against a reference solution, the energy
+and momentum drift, the wall time (median, min and max of ≥ 5 runs after compilation),
+the steps and vector-field evaluations, and the compile time; a fixed step too long for a scene makes its solve raise,
 and the point keeps the message. Each adaptive method's time and steps per extra digit of
 accuracy are fitted over its sweep's asymptotic range (`digits`), beside the $10^{1/p}$ its
 order $p$ predicts.

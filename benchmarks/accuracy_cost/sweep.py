@@ -3,7 +3,6 @@
 import dataclasses
 import time
 from collections.abc import Callable
-from unittest import mock
 
 import diffrax
 import jax
@@ -12,7 +11,8 @@ import jax.numpy as jnp
 import bundledyn as bd
 from benchmarks._errors import final_state, state_error
 from benchmarks._timing import timed
-from benchmarks.accuracy_cost.problems import Problem, dzhanibekov
+from benchmarks.accuracy_cost.problems import Problem
+from bundledyn._simulate import DEFAULT_SOLVER
 
 MAX_STEPS = 200_000
 REFERENCE_RTOL = 1e-13
@@ -50,31 +50,9 @@ METHODS = {
 }
 
 
-class _Handed(Exception):
-    """Carries the solver `bd.simulate` hands to diffrax, ending the call there."""
-
-
 def default_solver():
-    """The solver class `bd.simulate` integrates with when given none.
-
-    bundledyn names its default only inside `simulate`, so this calls it on the
-    Dzhanibekov body and stops it where it hands its solver to `diffrax.diffeqsolve`;
-    uncompiled, since a compiled call seen before would not reach diffrax again.
-    """
-
-    def handed(terms, solver, *args, **kwargs):
-        raise _Handed(type(solver))
-
-    problem = dzhanibekov()
-    with mock.patch.object(diffrax, "diffeqsolve", handed):
-        try:
-            # Tolerances that float32 allows: x64 may not be on.
-            bd.simulate.__wrapped__(
-                problem.scene, problem.state, problem.t1, rtol=1e-3, atol=1e-3, dt0=problem.t1
-            )
-        except _Handed as handed_over:
-            return handed_over.args[0]
-    raise RuntimeError("bd.simulate returned without calling diffrax.diffeqsolve")
+    """The solver class `bd.simulate` integrates with when given none."""
+    return DEFAULT_SOLVER
 
 
 def methods_for(problem: Problem, quick: bool, default: str):
