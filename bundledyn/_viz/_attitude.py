@@ -14,6 +14,7 @@ _NET_SHARE = 0.25
 
 # Compiled once per number of poses: evaluated op by op, the batched conversion took ~1 s.
 _quaternions = jax.jit(jax.vmap(lie.quaternion_from_rotation))
+_logs = jax.jit(jax.vmap(lie.so3_log))
 
 
 def attitude_quaternions(g) -> np.ndarray:
@@ -43,13 +44,8 @@ def _turns_from_start(g) -> np.ndarray:
 
 
 def _rotation_vectors(g) -> np.ndarray:
-    r"""The rotation vectors $\log(R_k R_0^T)$, `(n, 3)`, from their quaternions $(w, v)$:
-    $2\operatorname{atan2}(|v|, w)\,v/|v|$ with $w \ge 0$ (angles up to $\pi$)."""
-    quats = np.array(_quaternions(_turns_from_start(g)))
-    quats *= np.where(quats[:, :1] < 0.0, -1.0, 1.0)
-    sine = np.linalg.norm(quats[:, 1:], axis=-1)
-    angle = 2.0 * np.arctan2(sine, quats[:, 0])
-    return quats[:, 1:] * (angle / np.maximum(sine, np.finfo(float).tiny))[:, None]
+    r"""The rotation vectors $\log(R_k R_0^T)$, `(n, 3)` (angles up to $\pi$)."""
+    return np.asarray(_logs(_turns_from_start(g)))
 
 
 def turn_axis(g) -> np.ndarray | None:
