@@ -8,6 +8,7 @@ $\mathcal R'$, i.e. (2.9)–(2.10) with all their frame terms.
 
 import abc
 from collections.abc import Callable
+from typing import ClassVar
 
 import equinox as eqx
 import jax
@@ -20,6 +21,9 @@ from . import lie
 
 class AbstractFrame(eqx.Module):
     """A frame of reference moving by $M(t)$ relative to the Galilean frame."""
+
+    # The frame in words, for titles and printed summaries.
+    name: ClassVar[str] = "the moving frame"
 
     @abc.abstractmethod
     def motion(self, t) -> Float[Array, "4 4"]:
@@ -65,6 +69,8 @@ class Boosted(AbstractFrame):
     - `velocity`: $u$, shape `(3,)`, in the Galilean frame.
     """
 
+    name: ClassVar[str] = "the boosted frame"
+
     velocity: Float[Array, "3"]
 
     def __init__(self, velocity):
@@ -81,6 +87,8 @@ class FreeFalling(AbstractFrame):
 
     - `g`: magnitude of gravity; `direction`: its unit direction $\chi$ (default $-e_z$).
     """
+
+    name: ClassVar[str] = "the falling frame"
 
     g: Float[Array, ""]
     direction: Float[Array, "3"]

@@ -5,7 +5,6 @@ momentum are in the Galilean frame whatever the scene's frame (`Trajectory.energ
 `Trajectory.spatial_momentum`). Needs no matplotlib: the command line prints these names.
 """
 
-from .._frames import Boosted, FreeFalling
 from .._scene import Scene
 
 GALILEAN = "the Galilean frame"
@@ -20,13 +19,7 @@ def frame_name(scene: Scene) -> str:
 
     **Returns:**
 
-    `"the Galilean frame"`, `"the falling frame"`, `"the boosted frame"` or `"the moving
-    frame"` (any other `AbstractFrame`).
+    `"the Galilean frame"` without a frame, else the frame's `name` (`"the falling
+    frame"`, `"the boosted frame"`, `"the moving frame"` for any other `AbstractFrame`).
     """
-    if scene.frame is None:
-        return GALILEAN
-    if isinstance(scene.frame, FreeFalling):
-        return "the falling frame"
-    if isinstance(scene.frame, Boosted):
-        return "the boosted frame"
-    return "the moving frame"
+    return GALILEAN if scene.frame is None else scene.frame.name
