@@ -52,6 +52,7 @@ from ._scene import FloatingBase, Free, Prescribed, PrescribedBase, Scene
 from ._scene_file import SceneFile, SceneFileError, load_scene, load_system
 from ._simulate import project_to_se3, simulate
 from ._solids import AbstractSolid, Box, Capsule, Ellipsoid
+from ._solver._adjoint import StoredStepsAdjoint
 from ._solver._base import AbstractLieGroupSolver
 from ._solver._lie_euler import LieEuler
 from ._solver._rkmk import RKMK4, RKMK54, RKMK87, AbstractRKMK
@@ -182,6 +183,7 @@ __all__ = [
     "stress",
     "state_from_mujoco",
     "state_to_mujoco",
+    "StoredStepsAdjoint",
     "Trajectory",
     "Universal",
     "use_cpu_xla_flags",

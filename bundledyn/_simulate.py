@@ -11,6 +11,7 @@ import jax.tree_util as jtu
 from . import lie
 from ._precision import check_tolerances
 from ._scene import Scene
+from ._solver._adjoint import StoredStepsAdjoint
 from ._solver._base import AbstractLieGroupSolver
 from ._solver._rkmk import RKMK87, AbstractRKMK
 from ._solver._starting_step import starting_step
@@ -81,6 +82,13 @@ def _interpolates(saveat: diffrax.SaveAt, event) -> bool:
     return saveat.dense or event is not None or any(s.ts is not None for s in subs)
 
 
+def default_adjoint(solver) -> diffrax.AbstractAdjoint:
+    """The adjoint `simulate` differentiates `solver`'s solves with when given none."""
+    if isinstance(solver, AbstractLieGroupSolver):
+        return StoredStepsAdjoint()
+    return diffrax.RecursiveCheckpointAdjoint()
+
+
 def simulate(
     scene: Scene,
     state0: State,
@@ -135,7 +143,9 @@ def simulate(
       at `t0`, `t1` or the steps and there is no `event`, a Lie-group solver skips the
       stages that only its dense output uses (`AbstractRKMK`'s `dense_output`): `RKMK87`
       then evaluates the field 13 times per step instead of 14.
-    - `adjoint`: a diffrax adjoint (default `RecursiveCheckpointAdjoint`).
+    - `adjoint`: how reverse mode differentiates the solve: a diffrax adjoint. Default
+      `StoredStepsAdjoint` for the Lie-group solvers (one reverse sweep over the accepted
+      steps), `diffrax.RecursiveCheckpointAdjoint` for any other solver.
     - `event`: an optional `diffrax.Event` to stop at.
     - `max_steps`: step budget; running out raises (or, with `throw=False`, sets `result`).
     - `progress`: show diffrax's text progress meter.
@@ -189,7 +199,7 @@ def simulate(
         y0,
         saveat=saveat,
         stepsize_controller=controller,
-        adjoint=diffrax.RecursiveCheckpointAdjoint() if adjoint is None else adjoint,
+        adjoint=default_adjoint(solver) if adjoint is None else adjoint,
         event=event,
         max_steps=max_steps,
         progress_meter=diffrax.TextProgressMeter() if progress else diffrax.NoProgressMeter(),

@@ -1,0 +1,457 @@
+r"""`StoredStepsAdjoint`: reverse mode through a solve by one sweep over its accepted steps.
+
+The forward solve is diffrax's own loop, not differentiated, which also records the
+state at the start of every accepted step (an extra `SubSaveAt(steps=True)`). The
+reverse pass walks those steps from the last to the first and applies the VJP of the
+solver's `step` alone: diffrax's controller, saving and event bookkeeping never enter
+the reverse pass, and rejected steps leave nothing to undo. Each saved output adds its
+cotangent where it came from: the step's end state, the step's dense output (saved
+between steps) or, at an event located by a root find, the event's time and state
+through the implicit function theorem.
+"""
+
+import functools as ft
+
+import diffrax
+import equinox as eqx
+import equinox.internal as eqxi
+import jax
+import jax.lax as lax
+import jax.numpy as jnp
+import jax.tree_util as jtu
+from diffrax._adjoint import _inner_loop, _outer_loop
+from diffrax._integrate import SaveState
+
+__all__ = ["StoredStepsAdjoint"]
+
+
+def _is_subsaveat(x):
+    return isinstance(x, diffrax.SubSaveAt)
+
+
+def _is_save_state(x):
+    return isinstance(x, SaveState)
+
+
+def _nbytes(tree):
+    return sum(x.size * x.dtype.itemsize for x in jtu.tree_leaves(tree))
+
+
+def _zeros_like(tree):
+    return jtu.tree_map(jnp.zeros_like, tree)
+
+
+def _add(a, b):
+    return jtu.tree_map(jnp.add, a, b)
+
+
+class StoredStepsAdjoint(diffrax.AbstractAdjoint):
+    r"""Backpropagate through `diffrax.diffeqsolve` by storing the state at every accepted
+    step and sweeping once backwards over those steps with the VJP of the solver's step.
+
+    The gradients are those of `diffrax.RecursiveCheckpointAdjoint` (discretize, then
+    differentiate: the same steps, the step sizes held fixed, events located by their root
+    find differentiated implicitly), for less time: the reverse pass differentiates the
+    solver's `step` only, not diffrax's loop around it (its step-size controller, saving
+    and event checks), and each accepted step once. `bundledyn.simulate` uses it with its
+    Lie-group solvers.
+
+    Memory: one state per possible step, `max_steps` of them. Past `max_memory` bytes, or
+    where it does not apply (a solver with a state of its own, several event conditions,
+    `max_steps=None`, stochastic terms), the solve is differentiated by `fallback`.
+
+    Derivatives are taken with respect to `y0`, `args` and the terms' arrays (a scene's
+    parameters); not with respect to `t0`, `t1`, `SaveAt(ts=...)` or arrays inside an
+    event's condition. Reverse mode only (use `diffrax.ForwardMode` for forward mode).
+
+    **Arguments:**
+
+    - `max_memory`: the most bytes the stored states may take (default 1 GiB).
+    - `fallback`: the adjoint used past the budget or where this one does not apply
+      (default `diffrax.RecursiveCheckpointAdjoint()`, binomial checkpointing).
+    """
+
+    max_memory: int = eqx.field(default=2**30, static=True)
+    fallback: diffrax.AbstractAdjoint = diffrax.RecursiveCheckpointAdjoint()
+
+    def applies(self, *, terms, solver, event, init_state, max_steps) -> bool:
+        """Whether this solve is differentiated by stored steps (else by `fallback`)."""
+        if max_steps is None or init_state.solver_state is not None:
+            return False
+        if any(
+            isinstance(t, diffrax.AbstractBrownianPath)
+            for t in jtu.tree_leaves(
+                terms, is_leaf=lambda x: isinstance(x, diffrax.AbstractBrownianPath)
+            )
+        ):
+            return False
+        if event is not None and len(jtu.tree_leaves(event.cond_fn, is_leaf=callable)) != 1:
+            return False
+        return max_steps * _nbytes(init_state.y) <= self.max_memory
+
+    def loop(self, **kwargs):
+        keys = ("terms", "solver", "event", "init_state", "max_steps")
+        if not self.applies(**{k: kwargs[k] for k in keys}):
+            return self.fallback.loop(**kwargs)
+        args, terms, init_state = kwargs.pop("args"), kwargs.pop("terms"), kwargs["init_state"]
+        for unused in ("passed_solver_state", "passed_controller_state", "throw"):
+            del kwargs[unused]
+        kwargs["init_state"] = eqx.tree_at(
+            lambda s: (s.y, s.controller_state),
+            init_state,
+            (object(), lax.stop_gradient(init_state.controller_state)),
+            is_leaf=lambda x: x is None,
+        )
+        final_state, aux_stats = _stored_steps_loop(
+            (init_state.y, args, terms), loop=self._loop, **kwargs
+        )
+        return _only_saves_differentiable(final_state), aux_stats
+
+
+def _only_saves_differentiable(final_state):
+    """Mark all but the saved times and values nondifferentiable (their cotangents would
+    be dropped)."""
+
+    def saves(s):
+        states = jtu.tree_leaves(s.save_state, is_leaf=_is_save_state)
+        return [x.ts for x in states] + [x.ys for x in states]
+
+    kept = saves(final_state)
+    final_state = eqxi.nondifferentiable_backward(final_state, symbolic=False)
+    return eqx.tree_at(saves, final_state, kept)
+
+
+def _record_state(init_state, max_steps):
+    """An empty buffer for the states at the steps' ends, shaped as diffrax's own."""
+    y = init_state.y
+    return SaveState(
+        saveat_ts_index=0,
+        ts=jnp.full(max_steps, jnp.inf, dtype=jnp.result_type(init_state.tprev)),
+        ys=jtu.tree_map(lambda x: jnp.full((max_steps, *x.shape), jnp.inf, x.dtype), y),
+        save_index=0,
+    )
+
+
+def _forward(y__args__terms, *, loop, saveat, init_state, max_steps, **kwargs):
+    """diffrax's loop, undifferentiated, with the steps' end states recorded besides."""
+    y, args, terms = y__args__terms
+    init_state = eqx.tree_at(lambda s: s.y, init_state, y)
+    record = diffrax.SubSaveAt(steps=True)
+    saveat = eqx.tree_at(lambda s: s.subs, saveat, (saveat.subs, record))
+    init_state = eqx.tree_at(
+        lambda s: s.save_state,
+        init_state,
+        (init_state.save_state, _record_state(init_state, max_steps)),
+    )
+    final_state, aux_stats = loop(
+        args=args,
+        terms=terms,
+        saveat=saveat,
+        init_state=init_state,
+        max_steps=max_steps,
+        inner_while_loop=ft.partial(_inner_loop, kind="lax"),
+        outer_while_loop=ft.partial(_outer_loop, kind="lax"),
+        **kwargs,
+    )
+    user_saves, steps = final_state.save_state
+    final_state = eqx.tree_at(lambda s: s.save_state, final_state, user_saves)
+    return final_state, aux_stats, steps
+
+
+@eqx.filter_custom_vjp
+def _stored_steps_loop(y__args__terms, **kwargs):
+    final_state, aux_stats, _ = _forward(y__args__terms, **kwargs)
+    return final_state, aux_stats
+
+
+@_stored_steps_loop.def_fwd
+def _stored_steps_loop_fwd(perturbed, y__args__terms, **kwargs):
+    del perturbed
+    final_state, aux_stats, steps = _forward(y__args__terms, **kwargs)
+    residuals = (steps, final_state)
+    return (final_state, aux_stats), residuals
+
+
+class _Steps(eqx.Module):
+    """The accepted steps: $[t_k, t_{k+1}]$ from $y_k$, $k < n$, and the event's time."""
+
+    starts: jax.Array
+    ends: jax.Array
+    y_starts: object
+    n: jax.Array
+    t_final: jax.Array
+    event_inside: jax.Array
+
+
+def _accepted_steps(record, final_state, t0, y0, event):
+    """Each accepted step's start time, end time and start state, from the record.
+
+    The record holds the ends of the steps in order; with an event found by a root find,
+    diffrax replaces the last end by the event's time and state, so the last step's end
+    is the loop's final time instead.
+    """
+    n = final_state.num_accepted_steps
+    index = jnp.arange(record.ts.shape[0])
+    t_end = jnp.where(index < n - 1, record.ts, final_state.tprev)
+    ends = jnp.where(index < n, t_end, jnp.inf)
+    starts = jnp.concatenate([jnp.asarray(t0, ends.dtype)[None], t_end[:-1]])
+    y_starts = jtu.tree_map(lambda a, b: jnp.concatenate([b[None], a[:-1]]), record.ys, y0)
+    rooted = event is not None and event.root_finder is not None
+    if rooted:
+        t_final = record.ts[jnp.maximum(record.save_index - 1, 0)]
+        happened = jnp.any(jnp.stack([jnp.any(m) for m in jtu.tree_leaves(final_state.event_mask)]))
+        event_inside = happened & (n > 0) & (t_final < final_state.tprev)
+    else:
+        t_final, event_inside = final_state.tprev, jnp.array(False)
+    return _Steps(starts, ends, y_starts, n, t_final, event_inside)
+
+
+def _materialized(saves, grads):
+    """The cotangents of each `SaveState`'s times and values, zeros where none came."""
+    out = []
+    for save, grad in zip(saves, grads, strict=True):
+        g_ts = None if grad is None else grad.ts
+        g_ys = None if grad is None else grad.ys
+        g_ts = jnp.zeros_like(save.ts) if g_ts is None else g_ts
+        g_ys = jtu.tree_map(
+            lambda y, g: jnp.zeros_like(y) if g is None else g,
+            save.ys,
+            _zeros_like(save.ys) if g_ys is None else g_ys,
+            is_leaf=lambda x: x is None,
+        )
+        out.append((g_ts, g_ys))
+    return out
+
+
+class _Entries(eqx.Module):
+    r"""A `SubSaveAt`'s saved entries sorted into the steps they came from.
+
+    `step[i]` is $-1$ for an entry saved at $t_0$, $k$ for one saved in step $k$
+    ($t_k < \tau \le t_{k+1}$), and $n$ for an unused slot; `kind[i]` is 0 for a step's
+    end, 1 for a point between a step's ends (dense output), 2 for an event's root.
+    Entries are saved in time order, so each step's are the slice `lo[k]:hi[k]`.
+    """
+
+    times: jax.Array
+    step: jax.Array
+    kind: jax.Array
+    lo: jax.Array
+    hi: jax.Array
+
+
+def _sorted_entries(save, steps: _Steps, t0) -> _Entries:
+    times = save.ts
+    valid = jnp.arange(times.shape[0]) < save.save_index
+    k = jnp.searchsorted(steps.ends, times, side="left")
+    k = jnp.where(valid, jnp.where(times == t0, -1, k), steps.n)
+    end = steps.ends[jnp.clip(k, 0, steps.ends.shape[0] - 1)]
+    root = steps.event_inside & (times == steps.t_final)
+    kind = jnp.where(root, 2, jnp.where(times == end, 0, 1))
+    index = jnp.arange(steps.ends.shape[0])
+    lo = jnp.searchsorted(k, index, side="left")
+    hi = jnp.searchsorted(k, index, side="right")
+    return _Entries(times, k, kind, lo, hi)
+
+
+class _Problem(eqx.Module):
+    """What the reverse sweep evaluates: the solver's step and the saved outputs, as
+    functions of the differentiable parts of `args` and the terms."""
+
+    solver: diffrax.AbstractSolver
+    static_args: object
+    static_terms: object
+    event: diffrax.Event | None
+    event_kwargs: dict
+
+    def step(self, y, diff_args, diff_terms, ta, tb):
+        args = eqx.combine(diff_args, self.static_args)
+        terms = eqx.combine(diff_terms, self.static_terms)
+        y1, _, dense_info, _, _ = self.solver.step(terms, ta, tb, y, args, None, False)
+        return y1, dense_info
+
+    def interpolate(self, dense_info, ta, tb, t):
+        return self.solver.interpolation_cls(t0=ta, t1=tb, **dense_info).evaluate(t)
+
+    def saved(self, fn, t, y, diff_args):
+        return fn(t, y, eqx.combine(diff_args, self.static_args))
+
+    def condition(self, dense_info, diff_args, diff_terms, ta, tb, t):
+        (cond_fn,) = jtu.tree_leaves(self.event.cond_fn, is_leaf=callable)
+        return cond_fn(
+            t=t,
+            y=self.interpolate(dense_info, ta, tb, t),
+            args=eqx.combine(diff_args, self.static_args),
+            terms=eqx.combine(diff_terms, self.static_terms),
+            solver=self.solver,
+            **self.event_kwargs,
+        )
+
+    def at_root(self, fn, dense_info, diff_args, diff_terms, ta, tb, t):
+        r"""The event's time and saved value, differentiable as the root $t^*$ of its
+        condition $c$: $dt^* = -\partial c / \dot c$ (implicit function theorem), taken
+        from one Newton correction whose value is held at the found root."""
+        c = ft.partial(self.condition, dense_info, diff_args, diff_terms, ta, tb)
+        value, slope = jax.jvp(c, (t,), (jnp.ones_like(t),))
+        newton = t - value / lax.stop_gradient(slope)
+        root = t + (newton - lax.stop_gradient(newton))
+        return root, self.saved(fn, root, self.interpolate(dense_info, ta, tb, root), diff_args)
+
+
+def _entry_cotangents(
+    problem, fn, entries, g_ts, g_ys, y1, dense_info, diffs, ta, tb, k, real_event
+):
+    """Cotangents on the step's end state, its dense output, `args` and the terms from
+    the entries saved in step `k`."""
+    diff_args, diff_terms = diffs
+
+    def at_end(i):
+        _, vjp = jax.vjp(lambda y, a: problem.saved(fn, entries.times[i], y, a), y1, diff_args)
+        ct_y, ct_a = vjp(jtu.tree_map(lambda g: g[i], g_ys))
+        return ct_y, _zeros_like(dense_info), ct_a, _zeros_like(diff_terms)
+
+    def between(i):
+        def value(d, a):
+            return problem.saved(
+                fn, entries.times[i], problem.interpolate(d, ta, tb, entries.times[i]), a
+            )
+
+        _, vjp = jax.vjp(value, dense_info, diff_args)
+        ct_d, ct_a = vjp(jtu.tree_map(lambda g: g[i], g_ys))
+        return _zeros_like(y1), ct_d, ct_a, _zeros_like(diff_terms)
+
+    def at_root(i):
+        def value(d, a, tm):
+            return problem.at_root(fn, d, a, tm, ta, tb, entries.times[i])
+
+        _, vjp = jax.vjp(value, dense_info, diff_args, diff_terms)
+        ct_d, ct_a, ct_t = vjp((g_ts[i], jtu.tree_map(lambda g: g[i], g_ys)))
+        return _zeros_like(y1), ct_d, ct_a, ct_t
+
+    branches = [at_end, between] + ([at_root] if real_event else [])
+
+    def body(carry):
+        i, total = carry
+        kind = jnp.minimum(entries.kind[i], len(branches) - 1)
+        return i + 1, _add(total, lax.switch(kind, branches, i))
+
+    zero = (
+        _zeros_like(y1),
+        _zeros_like(dense_info),
+        _zeros_like(diff_args),
+        _zeros_like(diff_terms),
+    )
+    _, total = lax.while_loop(lambda c: c[0] < entries.hi[k], body, (entries.lo[k], zero))
+    return total
+
+
+@_stored_steps_loop.def_bwd
+def _stored_steps_loop_bwd(
+    residuals,
+    grad_out,
+    perturbed,
+    y__args__terms,
+    *,
+    loop,
+    solver,
+    saveat,
+    event,
+    t0,
+    t1,
+    dt0,
+    stepsize_controller,
+    max_steps,
+    init_state,
+    progress_meter,
+):
+    del perturbed, loop, init_state, progress_meter
+    record, final_state = residuals
+    grad_final_state, _ = grad_out
+    y0, args, terms = y__args__terms
+    diff_args, static_args = eqx.partition(args, eqx.is_inexact_array)
+    diff_terms, static_terms = eqx.partition(terms, eqx.is_inexact_array)
+    event_kwargs = dict(
+        t0=t0,
+        t1=t1,
+        dt0=dt0,
+        saveat=saveat,
+        stepsize_controller=stepsize_controller,
+        max_steps=max_steps,
+    )
+    problem = _Problem(solver, static_args, static_terms, event, event_kwargs)
+    steps = _accepted_steps(record, final_state, t0, y0, event)
+
+    subs = jtu.tree_leaves(saveat.subs, is_leaf=_is_subsaveat)
+    saves = jtu.tree_leaves(final_state.save_state, is_leaf=_is_save_state)
+    grads = jtu.tree_leaves(
+        None if grad_final_state is None else grad_final_state.save_state,
+        is_leaf=lambda x: x is None or _is_save_state(x),
+    )
+    grads = _materialized(saves, grads if len(grads) == len(saves) else [None] * len(saves))
+    entries = [_sorted_entries(save, steps, t0) for save in saves]
+    real_event = (
+        event is not None
+        and event.root_finder is not None
+        and jnp.issubdtype(
+            jax.eval_shape(
+                problem.condition,
+                *jax.eval_shape(problem.step, y0, diff_args, diff_terms, t0, t0)[1:],
+                diff_args,
+                diff_terms,
+                t0,
+                t0,
+                t0,
+            ).dtype,
+            jnp.floating,
+        )
+    )
+
+    def reverse_step(carry):
+        k, ct_y, ct_args, ct_terms = carry
+        j = jnp.maximum(k, 0)  # members of a batch already done repeat step 0, discarded
+        ta, tb = steps.starts[j], steps.ends[j]
+        y_start = jtu.tree_map(lambda a: a[j], steps.y_starts)
+        (y1, dense_info), vjp = jax.vjp(
+            lambda y, a, tm: problem.step(y, a, tm, ta, tb), y_start, diff_args, diff_terms
+        )
+        ct_y1, ct_dense = ct_y, _zeros_like(dense_info)
+        for sub, (g_ts, g_ys), e in zip(subs, grads, entries, strict=True):
+            d_y1, d_dense, d_args, d_terms = _entry_cotangents(
+                problem,
+                sub.fn,
+                e,
+                g_ts,
+                g_ys,
+                y1,
+                dense_info,
+                (diff_args, diff_terms),
+                ta,
+                tb,
+                j,
+                real_event,
+            )
+            ct_y1, ct_dense = _add(ct_y1, d_y1), _add(ct_dense, d_dense)
+            ct_args, ct_terms = _add(ct_args, d_args), _add(ct_terms, d_terms)
+        ct_y0, d_args, d_terms = vjp((ct_y1, ct_dense))
+        return k - 1, ct_y0, _add(ct_args, d_args), _add(ct_terms, d_terms)
+
+    carry = (steps.n - 1, _zeros_like(y0), _zeros_like(diff_args), _zeros_like(diff_terms))
+    _, ct_y0, ct_args, ct_terms = lax.while_loop(lambda c: c[0] >= 0, reverse_step, carry)
+    for sub, (_, g_ys), e in zip(subs, grads, entries, strict=True):
+        d_y0, d_args = _initial_cotangents(problem, sub.fn, e, g_ys, y0, diff_args, t0)
+        ct_y0, ct_args = _add(ct_y0, d_y0), _add(ct_args, d_args)
+    return ct_y0, ct_args, ct_terms
+
+
+def _initial_cotangents(problem, fn, entries, g_ys, y0, diff_args, t0):
+    """Cotangents on $y_0$ and `args` from the entries saved at $t_0$."""
+
+    def body(carry):
+        i, total = carry
+        _, vjp = jax.vjp(lambda y, a: problem.saved(fn, t0, y, a), y0, diff_args)
+        return i + 1, _add(total, vjp(jtu.tree_map(lambda g: g[i], g_ys)))
+
+    count = jnp.sum(entries.step == -1)
+    _, total = lax.while_loop(
+        lambda c: c[0] < count, body, (0, (_zeros_like(y0), _zeros_like(diff_args)))
+    )
+    return total

@@ -1,0 +1,169 @@
+"""`StoredStepsAdjoint` gives the gradients of diffrax's `RecursiveCheckpointAdjoint`:
+for every Lie-group solver, with saves between steps, at the steps, and at an event."""
+
+import functools
+
+import diffrax
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+import optimistix as optx
+import pytest
+from systems import asymmetric_body, chain
+
+import bundledyn as bd
+from bundledyn._simulate import default_adjoint
+
+T1 = 1.0
+TS = jnp.linspace(0.0, T1, 7)
+
+
+def _rigid_case():
+    scene = bd.Scene(asymmetric_body())
+    xi = jnp.array([0.3, 2.0, -0.4, 0.1, 0.0, 0.2])
+    return scene, bd.State(jnp.eye(4), jnp.zeros(0), xi, jnp.zeros(0))
+
+
+def _chain_case():
+    scene = bd.Scene(chain(3))  # a hinge and a universal joint
+    xi = jnp.array([0.3, 0.2, -0.4, 0.1, 0.0, 0.2])
+    return scene, bd.State(jnp.eye(4), jnp.array([0.2, -0.1, 0.3]), xi, jnp.array([0.5, -0.4, 0.3]))
+
+
+CASES = {"rigid": _rigid_case, "chain": _chain_case}
+
+
+def _finite(a):
+    return jnp.where(jnp.isfinite(a), a, 0.0)
+
+
+def _loss(case, adjoint, options, params):
+    """A loss on everything a trajectory saves (poses, shapes, velocities, times), as a
+    function of the initial twist and the bodies' rotational inertias."""
+    scene, state = CASES[case]()
+    xi, inertia = params
+    scene = eqx.tree_at(lambda s: s.system.inertia, scene, inertia)
+    state = bd.State(state.g, state.q, xi, state.qdot)
+    traj = bd.simulate(scene, state, T1, adjoint=adjoint, rtol=1e-8, atol=1e-8, **options)
+    weights = 1.0 + jnp.arange(traj.ts.shape[0])[:, None]  # each save counts differently
+    parts = [traj.g.reshape(len(traj.ts), -1), traj.U, traj.q, traj.ts[:, None]]
+    return sum(jnp.sum(weights * _finite(p) ** 2) for p in parts)
+
+
+def _params(case):
+    scene, state = CASES[case]()
+    return state.xi, scene.system.inertia
+
+
+@functools.cache
+def _gradient(case, adjoint, options_key):
+    options = dict(OPTIONS[options_key])
+    return jax.jit(jax.grad(functools.partial(_loss, case, adjoint, options)))
+
+
+def _crossing(t, y, args, **kwargs):
+    return y[0][0, 3] - 0.05  # the section frame's x crosses 5 cm
+
+
+def _past(t, y, args, **kwargs):
+    return y[0][0, 3] > 0.05
+
+
+OPTIONS = {
+    "RKMK87 ts": dict(saveat=diffrax.SaveAt(t0=True, ts=TS, t1=True)),
+    "RKMK54 ts": dict(solver=bd.RKMK54(), saveat=diffrax.SaveAt(ts=TS, t1=True)),
+    "RKMK4 ts": dict(solver=bd.RKMK4(), dt0=0.05, saveat=diffrax.SaveAt(ts=TS, t1=True)),
+    "LieEuler ts": dict(solver=bd.LieEuler(), dt0=0.05, saveat=diffrax.SaveAt(ts=TS, t1=True)),
+    "VariationalMidpoint ts": dict(
+        solver=bd.VariationalMidpoint(), dt0=0.05, saveat=diffrax.SaveAt(ts=TS, t1=True)
+    ),
+    "RKMK87 steps": dict(saveat=diffrax.SaveAt(t0=True, steps=True)),
+    "RKMK87 event": dict(
+        event=diffrax.Event(_crossing, optx.Newton(1e-12, 1e-12)),
+        saveat=diffrax.SaveAt(ts=TS, t1=True),
+    ),
+    "RKMK87 boolean event": dict(event=diffrax.Event(_past)),
+}
+
+CHECKPOINTED = diffrax.RecursiveCheckpointAdjoint()
+STORED = bd.StoredStepsAdjoint()
+
+
+def _assert_gradients_equal(ours, reference):
+    for a, b in zip(jax.tree.leaves(ours), jax.tree.leaves(reference), strict=True):
+        scale = float(jnp.max(jnp.abs(b)))
+        assert scale > 0.0  # every input moves the loss
+        np.testing.assert_allclose(np.asarray(a), np.asarray(b), rtol=0, atol=1e-10 * scale)
+
+
+@pytest.mark.parametrize(
+    "case, options",
+    [("rigid", key) for key in OPTIONS] + [("chain", "RKMK87 ts"), ("chain", "RKMK87 event")],
+)
+def test_stored_steps_gradients_equal_checkpointed_ones(case, options):
+    params = _params(case)
+    ours = _gradient(case, STORED, options)(params)
+    _assert_gradients_equal(ours, _gradient(case, CHECKPOINTED, options)(params))
+
+
+def test_the_event_stops_the_solve_at_its_root():
+    # The event case measures what it claims: the solve ends at the condition's root,
+    # before t1 and at none of the other save times.
+    traj = bd.simulate(*CASES["rigid"](), T1, **OPTIONS["RKMK87 event"], rtol=1e-8, atol=1e-8)
+    last = int(jnp.argmax(jnp.where(jnp.isfinite(traj.ts), traj.ts, -jnp.inf)))
+    assert 0.0 < float(traj.ts[last]) < T1
+    assert not jnp.any(traj.ts[last] == TS)
+    np.testing.assert_allclose(float(traj.g[last, 0, 3]), 0.05, atol=1e-12)
+
+
+def test_past_its_memory_budget_the_adjoint_falls_back_to_checkpointing():
+    case, options = "rigid", "RKMK87 ts"
+    frugal = bd.StoredStepsAdjoint(max_memory=1024)
+    scene, state = CASES[case]()
+    y0 = bd.SceneTerm(scene).encode(0.0, state)
+    state_bytes = sum(x.size * x.dtype.itemsize for x in jax.tree.leaves(y0))
+    assert 16384 * state_bytes > frugal.max_memory  # simulate's max_steps do not fit
+    calls = []
+    fallback = frugal.fallback
+
+    class Counting(type(fallback)):
+        def loop(self, **kwargs):
+            calls.append(True)
+            return super().loop(**kwargs)
+
+    frugal = eqx.tree_at(lambda a: a.fallback, frugal, Counting())
+    ours = jax.grad(functools.partial(_loss, case, frugal, dict(OPTIONS[options])))(_params(case))
+    assert calls  # the fallback differentiated the solve
+    _assert_gradients_equal(ours, _gradient(case, CHECKPOINTED, options)(_params(case)))
+
+
+def test_batched_gradients_of_members_taking_different_steps():
+    # Under vmap the reverse sweep runs to the longest member's steps; the others must
+    # discard the extra sweeps.
+    case, options = "rigid", "RKMK87 ts"
+    xi, inertia = _params(case)
+    xis = jnp.stack([xi, 3.0 * xi])
+    loss = functools.partial(_loss, case, STORED, dict(OPTIONS[options]))
+    batched = jax.jit(jax.vmap(jax.grad(loss), in_axes=((0, None),)))((xis, inertia))
+    steps = [
+        int(
+            bd.simulate(*_with_twist(case, x), T1, rtol=1e-8, atol=1e-8).stats["num_accepted_steps"]
+        )
+        for x in xis
+    ]
+    assert steps[0] != steps[1]
+    for i, x in enumerate(xis):
+        reference = _gradient(case, CHECKPOINTED, options)((x, inertia))
+        _assert_gradients_equal(jax.tree.map(lambda a, i=i: a[i], batched), reference)
+
+
+def _with_twist(case, xi):
+    scene, state = CASES[case]()
+    return scene, bd.State(state.g, state.q, xi, state.qdot)
+
+
+def test_simulate_differentiates_its_lie_group_solvers_with_stored_steps():
+    assert isinstance(default_adjoint(bd.RKMK87()), bd.StoredStepsAdjoint)
+    assert isinstance(default_adjoint(bd.VariationalMidpoint()), bd.StoredStepsAdjoint)
+    assert isinstance(default_adjoint(diffrax.Dopri8()), diffrax.RecursiveCheckpointAdjoint)
