@@ -173,37 +173,48 @@ def _stored_steps_loop_fwd(perturbed, y__args__terms, **kwargs):
 
 
 class _Steps(eqx.Module):
-    """The accepted steps: $[t_k, t_{k+1}]$ from $y_k$, $k < n$, and the event's time."""
+    """The accepted steps, $[t_k, t_{k+1}]$ from $y_k$ for $k < n$, read off the record of
+    their ends (indexed per step: nothing of the size of `max_steps` is formed)."""
 
-    starts: jax.Array
-    ends: jax.Array
-    y_starts: object
+    t0: jax.Array
+    y0: object
+    record: SaveState
     n: jax.Array
+    t_last: jax.Array
     t_final: jax.Array
     event_inside: jax.Array
 
+    def end(self, k):
+        r"""$t_{k+1}$, and $+\infty$ past the last step. The record holds the steps' ends in
+        order, except that with an event found by a root find diffrax replaces the last
+        one by the event's time, so the last step's end is the loop's final time."""
+        t = jnp.where(k < self.n - 1, self.record.ts[jnp.clip(k, 0, None)], self.t_last)
+        return jnp.where(k < self.n, t, jnp.inf)
 
-def _accepted_steps(record, final_state, t0, y0, event):
-    """Each accepted step's start time, end time and start state, from the record.
+    def ends(self):
+        return self.end(jnp.arange(self.record.ts.shape[0]))
 
-    The record holds the ends of the steps in order; with an event found by a root find,
-    diffrax replaces the last end by the event's time and state, so the last step's end
-    is the loop's final time instead.
-    """
+    def start(self, k):
+        """$(t_k, y_k)$."""
+        previous = jnp.maximum(k - 1, 0)
+        t = jnp.where(k == 0, self.t0, self.record.ts[previous])
+        y = jtu.tree_map(
+            lambda y0, ys: jnp.where(k == 0, y0, ys[previous]), self.y0, self.record.ys
+        )
+        return t, y
+
+
+def _accepted_steps(record, final_state, t0, y0, event) -> _Steps:
     n = final_state.num_accepted_steps
-    index = jnp.arange(record.ts.shape[0])
-    t_end = jnp.where(index < n - 1, record.ts, final_state.tprev)
-    ends = jnp.where(index < n, t_end, jnp.inf)
-    starts = jnp.concatenate([jnp.asarray(t0, ends.dtype)[None], t_end[:-1]])
-    y_starts = jtu.tree_map(lambda a, b: jnp.concatenate([b[None], a[:-1]]), record.ys, y0)
-    rooted = event is not None and event.root_finder is not None
-    if rooted:
+    if event is not None and event.root_finder is not None:
         t_final = record.ts[jnp.maximum(record.save_index - 1, 0)]
-        happened = jnp.any(jnp.stack([jnp.any(m) for m in jtu.tree_leaves(final_state.event_mask)]))
+        masks = [jnp.any(m) for m in jtu.tree_leaves(final_state.event_mask)]
+        happened = jnp.any(jnp.stack(masks))
         event_inside = happened & (n > 0) & (t_final < final_state.tprev)
     else:
         t_final, event_inside = final_state.tprev, jnp.array(False)
-    return _Steps(starts, ends, y_starts, n, t_final, event_inside)
+    t0 = jnp.asarray(t0, record.ts.dtype)
+    return _Steps(t0, y0, record, n, final_state.tprev, t_final, event_inside)
 
 
 def _materialized(saves, grads):
@@ -235,22 +246,23 @@ class _Entries(eqx.Module):
     times: jax.Array
     step: jax.Array
     kind: jax.Array
-    lo: jax.Array
-    hi: jax.Array
+
+    def bounds(self, k):
+        """The slice of the entries saved in step `k`."""
+        return (
+            jnp.searchsorted(self.step, k, side="left"),
+            jnp.searchsorted(self.step, k, side="right"),
+        )
 
 
 def _sorted_entries(save, steps: _Steps, t0) -> _Entries:
     times = save.ts
     valid = jnp.arange(times.shape[0]) < save.save_index
-    k = jnp.searchsorted(steps.ends, times, side="left")
+    k = jnp.searchsorted(steps.ends(), times, side="left")
     k = jnp.where(valid, jnp.where(times == t0, -1, k), steps.n)
-    end = steps.ends[jnp.clip(k, 0, steps.ends.shape[0] - 1)]
     root = steps.event_inside & (times == steps.t_final)
-    kind = jnp.where(root, 2, jnp.where(times == end, 0, 1))
-    index = jnp.arange(steps.ends.shape[0])
-    lo = jnp.searchsorted(k, index, side="left")
-    hi = jnp.searchsorted(k, index, side="right")
-    return _Entries(times, k, kind, lo, hi)
+    kind = jnp.where(root, 2, jnp.where(times == steps.end(k), 0, 1))
+    return _Entries(times, k, kind)
 
 
 class _Problem(eqx.Module):
@@ -334,13 +346,14 @@ def _entry_cotangents(
         kind = jnp.minimum(entries.kind[i], len(branches) - 1)
         return i + 1, _add(total, lax.switch(kind, branches, i))
 
+    lo, hi = entries.bounds(k)
     zero = (
         _zeros_like(y1),
         _zeros_like(dense_info),
         _zeros_like(diff_args),
         _zeros_like(diff_terms),
     )
-    _, total = lax.while_loop(lambda c: c[0] < entries.hi[k], body, (entries.lo[k], zero))
+    _, total = lax.while_loop(lambda c: c[0] < hi, body, (lo, zero))
     return total
 
 
@@ -408,8 +421,7 @@ def _stored_steps_loop_bwd(
     def reverse_step(carry):
         k, ct_y, ct_args, ct_terms = carry
         j = jnp.maximum(k, 0)  # members of a batch already done repeat step 0, discarded
-        ta, tb = steps.starts[j], steps.ends[j]
-        y_start = jtu.tree_map(lambda a: a[j], steps.y_starts)
+        (ta, y_start), tb = steps.start(j), steps.end(j)
         (y1, dense_info), vjp = jax.vjp(
             lambda y, a, tm: problem.step(y, a, tm, ta, tb), y_start, diff_args, diff_terms
         )
