@@ -14,6 +14,7 @@ import pytest
 import scipy.linalg
 
 from bundledyn import lie
+from bundledyn._lie._so3 import so3_dexp_derivative
 
 PI = np.pi
 # θ = 0, tiny, in the small-angle log branch, on both sides of the Taylor switch (θ² = 1),
@@ -307,6 +308,20 @@ def _dexp(xi, dxi):
 @pytest.mark.parametrize("theta", SPECIAL, ids=SPECIAL_IDS)
 def test_dexp(rng, theta):
     _check(_dexp(_twists(rng, theta), rng.standard_normal((N, 6))), 2e-14)
+
+
+@pytest.mark.parametrize("theta", SPECIAL, ids=SPECIAL_IDS)
+def test_dexp_derivative_equals_autodiff_and_finite_differences(rng, theta):
+    # The written-out derivative the ball joints' metric jet uses, at θ = 0 and across
+    # the series/closed-form switch at θ = 1 included.
+    w = jnp.asarray(_rotvecs(rng, np.full(N, theta)))
+    got = so3_dexp_derivative(w)
+    autodiff = jnp.moveaxis(jax.vmap(jax.jacfwd(lie.so3_dexp))(w), -1, 1)
+    _check({"jacfwd": _maxabs(got - autodiff)}, 1e-14)
+    h = 1e-6
+    e = h * jnp.eye(3)
+    central = (lie.so3_dexp(w[:, None] + e) - lie.so3_dexp(w[:, None] - e)) / (2 * h)
+    _check({"central differences": _maxabs(got - central)}, 1e-9)
 
 
 # --------------------------------------------------------------------------------------

@@ -4,12 +4,12 @@ import abc
 from typing import ClassVar
 
 import equinox as eqx
-import jax
 import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Float
 
 from .. import lie
+from .._lie._so3 import so3_dexp_derivative
 from .._linalg import einsum, matmul, take
 from ._base import AbstractInertialSystem, autodiff_metric_jet
 from ._link import Link
@@ -18,7 +18,7 @@ from ._pseudo_inertia import inertial_from_pseudo_inertia, pseudo_inertia
 from ._rigid_body import RigidBody, spatial_inertia
 from ._screws import pose, unit_screw_exp, unit_screws
 from ._tree import Tree, column_tables, tree_tables
-from ._tree_metric import TreeMetricJet, composite_metric
+from ._tree_metric import BallColumnDerivative, TreeMetricJet, composite_metric
 from ._validation import check_shape, checked_inertia, checked_mass, concrete
 
 
@@ -318,20 +318,15 @@ class Multibody(AbstractMultibody):
         ball_dZ = self._ball_column_derivative(q, T, ball_nodes) if len(ball_nodes) else None
         return TreeMetricJet(G, Z, inertias, ball_dZ, path, at_or_above, strictly_above)
 
-    def _ball_column_derivative(self, q, T, ball_nodes):
-        r"""$\operatorname{Ad}_{T} \partial S_i/\partial\varphi_l$ of each ball joint's own columns."""
+    def _ball_column_derivative(self, q, T, ball_nodes) -> BallColumnDerivative:
+        r"""$\operatorname{Ad}_{T} \partial S_i/\partial\varphi_l$ of each ball joint's own columns,
+        $S = [J_r; \hat a J_r]$ with $J_r = \operatorname{dexp}(\varphi)$ (`so3_dexp_derivative`)."""
         cols = np.array(self.tables.q_start)[ball_nodes][:, None] + np.arange(3)
-        phi = take(q, cols)
-
-        def columns(p, a):
-            Jr = lie.so3_dexp(p)
-            return jnp.concatenate([Jr, matmul(lie.hat(a), Jr)], axis=-2)
-
-        dS = jax.vmap(jax.jacfwd(columns))(phi, self.ball_anchors)  # (k, 6, i, l)
-        values = jnp.einsum("kxy,kyil->kilx", lie.Ad(take(T, ball_nodes)), dS)
-        # Placed by products with constant 0/1 tables, not a scatter-add (a loop on XLA's CPU).
-        place = (cols[..., None] == np.arange(self.shape_dim)).astype(values.dtype)
-        return jnp.einsum("klm,kin,kilx->mxn", place, place, values)
+        dJr = so3_dexp_derivative(take(q, cols))  # (k, l, 3, i)
+        arm = einsum("kyz,klzi->klyi", lie.hat(self.ball_anchors), dJr)
+        dS = jnp.concatenate([dJr, arm], axis=-2)  # (k, l, 6, i)
+        values = jnp.einsum("kxy,klyi->klix", lie.Ad(take(T, ball_nodes)), dS)
+        return BallColumnDerivative(values, cols, self.shape_dim)
 
     def with_pseudo_inertias(self, P) -> "Multibody":
         m, c, J = inertial_from_pseudo_inertia(P)

@@ -1,10 +1,12 @@
 r"""The metric of a tree of bodies and its derivative contractions, in closed form (screw theory)."""
 
+import equinox as eqx
 import jax.numpy as jnp
+import numpy as np
 from jaxtyping import Array, Float
 
 from .. import lie
-from .._linalg import einsum, matmul
+from .._linalg import einsum, matmul, take
 from ._metric_jet import AbstractMetricJet
 
 
@@ -25,6 +27,43 @@ def composite_metric(inertias, Z, path, at_or_above, strictly_above):
     return jnp.concatenate([top, jnp.concatenate([B.T, M], axis=1)], axis=0)
 
 
+class BallColumnDerivative(eqx.Module):
+    r"""$\partial Z_j/\partial q_m$ of the ball joints' own columns, kept per joint.
+
+    A ball joint's three columns depend on its own three coordinates only (through its
+    $\operatorname{dexp}$), so of the $d\times 6\times d$ array of derivatives only
+    $3\times 3$ twists per joint are not zero: `values[k, l, i]` $= \partial Z_{c_{ki}} /
+    \partial q_{c_{kl}}$ with $c_k$ = `columns[k]` joint $k$'s coordinates. The two
+    contractions the metric jet needs are formed from these blocks and placed among the
+    $d$ columns by constant slices.
+    """
+
+    values: Float[Array, "k 3 3 6"]
+    columns: np.ndarray = eqx.field(static=True)
+    shape_dim: int = eqx.field(static=True)
+
+    def _placement(self):
+        """For each of the $d$ columns, its row in the flattened blocks, or the zero row."""
+        index = np.full(self.shape_dim, self.columns.size)
+        index[self.columns.reshape(-1)] = np.arange(self.columns.size)
+        return index
+
+    def _placed(self, blocks, axis):
+        """`blocks` with the ball coordinates along `axis` (k·3 of them) spread over all $d$."""
+        zero = jnp.zeros_like(take(blocks, [0], axis=axis))
+        return take(jnp.concatenate([blocks, zero], axis=axis), self._placement(), axis=axis)
+
+    def along(self, u):
+        r"""$\sum_m u_m\,\partial Z_j/\partial q_m$, shape `(6, d)`."""
+        blocks = jnp.einsum("kl,klix->kix", take(u, self.columns), self.values)
+        return self._placed(blocks.reshape(-1, 6), axis=0).T
+
+    def applied(self, V):
+        r"""$\sum_j (\partial Z_j/\partial q_m) v_j$ for each row $v$ of `V` `(r, d)`: shape `(r, d, 6)`."""
+        blocks = jnp.einsum("klix,rki->rklx", self.values, take(V, self.columns, axis=1))
+        return self._placed(blocks.reshape(V.shape[0], -1, 6), axis=1)
+
+
 class TreeMetricJet(AbstractMetricJet):
     r"""The metric jet of a tree of bodies (section at the base), contracted in closed form.
 
@@ -42,7 +81,7 @@ class TreeMetricJet(AbstractMetricJet):
     metric: Float[Array, "6+d 6+d"]
     Z: Float[Array, "6 d"]
     inertias: Float[Array, "n 6 6"]
-    ball_dZ: Float[Array, "d 6 d"] | None
+    ball_dZ: BallColumnDerivative | None
     path: Float[Array, "n d"]
     at_or_above: Float[Array, "d d"]
     strictly_above: Float[Array, "d d"]
@@ -66,7 +105,7 @@ class TreeMetricJet(AbstractMetricJet):
         Zu = self.Z * u
         dZ = lie.bracket(matmul(Zu, self.at_or_above).T, self.Z.T).T
         if self.ball_dZ is not None:
-            dZ = dZ + einsum("k,kxj->xj", u, self.ball_dZ)
+            dZ = dZ + self.ball_dZ.along(u)
         W = einsum("il,al->ai", Zu, self.path)
         V = self._twists(self.Z, X)
         p = jnp.einsum("aij,maj->mai", self.inertias, V)
@@ -84,6 +123,6 @@ class TreeMetricJet(AbstractMetricJet):
         Pi = self._subtree_sums(jnp.einsum("aij,maj->mai", self.inertias, V))  # (m, d, 6)
         ZN = lie.bracket(self.Z.T, N)  # [Z_k, N_k(x_i)]
         if self.ball_dZ is not None:
-            ZN = ZN - jnp.einsum("kxj,mj->mkx", self.ball_dZ, X[:, 6:])
+            ZN = ZN - self.ball_dZ.applied(X[:, 6:])
         half = -jnp.einsum("ikx,jkx->ijk", ZN, Pi)
         return half + jnp.swapaxes(half, 0, 1)
