@@ -326,7 +326,7 @@ class Multibody(AbstractMultibody):
         arm = einsum("kyz,klzi->klyi", lie.hat(self.ball_anchors), dJr)
         dS = jnp.concatenate([dJr, arm], axis=-2)  # (k, l, 6, i)
         values = jnp.einsum("kxy,klyi->klix", lie.Ad(take(T, ball_nodes)), dS)
-        return BallColumnDerivative(values, cols, self.shape_dim)
+        return BallColumnDerivative(values, tuple(map(tuple, cols.tolist())), self.shape_dim)
 
     def with_pseudo_inertias(self, P) -> "Multibody":
         m, c, J = inertial_from_pseudo_inertia(P)

@@ -39,13 +39,14 @@ class BallColumnDerivative(eqx.Module):
     """
 
     values: Float[Array, "k 3 3 6"]
-    columns: np.ndarray = eqx.field(static=True)
+    columns: tuple[tuple[int, int, int], ...] = eqx.field(static=True)
     shape_dim: int = eqx.field(static=True)
 
     def _placement(self):
         """For each of the $d$ columns, its row in the flattened blocks, or the zero row."""
-        index = np.full(self.shape_dim, self.columns.size)
-        index[self.columns.reshape(-1)] = np.arange(self.columns.size)
+        columns = np.array(self.columns).reshape(-1)
+        index = np.full(self.shape_dim, columns.size)
+        index[columns] = np.arange(columns.size)
         return index
 
     def _placed(self, blocks, axis):
@@ -55,12 +56,12 @@ class BallColumnDerivative(eqx.Module):
 
     def along(self, u):
         r"""$\sum_m u_m\,\partial Z_j/\partial q_m$, shape `(6, d)`."""
-        blocks = jnp.einsum("kl,klix->kix", take(u, self.columns), self.values)
+        blocks = jnp.einsum("kl,klix->kix", take(u, np.array(self.columns)), self.values)
         return self._placed(blocks.reshape(-1, 6), axis=0).T
 
     def applied(self, V):
         r"""$\sum_j (\partial Z_j/\partial q_m) v_j$ for each row $v$ of `V` `(r, d)`: shape `(r, d, 6)`."""
-        blocks = jnp.einsum("klix,rki->rklx", self.values, take(V, self.columns, axis=1))
+        blocks = jnp.einsum("klix,rki->rklx", self.values, take(V, np.array(self.columns), axis=1))
         return self._placed(blocks.reshape(V.shape[0], -1, 6), axis=1)
 
 
