@@ -258,6 +258,70 @@ def test_family_ratios_at_an_error():
     assert ratios({})["coarse"] is None
 
 
+def _gradient_part(forward, grads, vjps, failed=None):
+    """A member's synthetic gradient part: times in seconds, `grads` per adjoint."""
+    stats = lambda t: {"median": t, "min": t, "max": t}  # noqa: E731
+    adjoints = {name: {"grad": stats(forward * r), "compile": 1.0} for name, r in grads.items()}
+    adjoints |= {failed: {"error": "RuntimeError: diverged"}} if failed else {}
+    ratios = {name: grads.get(name) for name in adjoints} | {
+        "field_vjp": vjps[0],
+        "step_vjp": vjps[1],
+    }
+    return {"forward": stats(forward), "adjoints": adjoints, "ratios": ratios}
+
+
+def test_family_gradient_part_reports_and_merges(monkeypatch):
+    """The gradient part (synthetic numbers on the committed members): its targets are the
+    worst case over the members measured, a failed adjoint is “–” and listed, a report of
+    the gradients alone draws without the MuJoCo columns; `--only gradient` adds to the
+    results already there and `--only mujoco` keeps their gradients."""
+    from benchmarks.family.cli import kept
+    from benchmarks.family.gradient import checked_sampler, gradient_header
+    from benchmarks.family.report import markdown, target_rows
+
+    report = json.loads((RESULTS / "family.json").read_text())
+    monkeypatch.setattr("benchmarks._provenance.provenance", lambda: report["provenance"])
+    report["gradient"] = gradient_header(("bundledyn",), 3, report["horizons"])
+    names = report["gradient"]["adjoints"]
+    first, second = report["members"][:2]
+    first["gradient"] = _gradient_part(
+        0.01, dict(zip(names, (3.0, 3.5, 9.0), strict=True)), (2.0, 2.5)
+    )
+    second["gradient"] = _gradient_part(
+        0.02, dict(zip(names[:2], (5.0, 2.0), strict=True)), (4.0, 1.0), names[2]
+    )
+    rows = {row[0]: row for row in target_rows(report)}
+    (default,) = (row for what, row in rows.items() if "simulate's default" in what)
+    assert default[1:] == (4.0, 5.0, second["name"], 4.0, False, 2)  # median, worst, …
+    backsolve = rows["gradient / forward solve, BacksolveAdjoint"]
+    assert backsolve[2:] == (9.0, first["name"], 4.0, False, 1)
+    assert rows["RKMK87 step's VJP / step"][2:4] == (2.5, first["name"])
+    text = markdown(report)
+    assert f"| {first['name']} |" in text and "| 10 | 3 | 3.5 | 9 | 2 | 2.5 |" in text
+    assert "| 20 | 5 | 2 | – | 4 | 1 |" in text
+    assert f"- {second['name']}, BacksolveAdjoint: RuntimeError: diverged" in text
+    assert "| one field evaluation / mj_forward |" in text
+
+    alone = report | {
+        "members": [{k: v for k, v in first.items() if k not in ("field", "solves", "ratios")}]
+    }
+    text = markdown(alone)
+    assert "mj_forward" not in text and "| 3 | 3.5 | 9 | 2 | 2.5 |" in text
+
+    fresh = {"horizons": report["horizons"], "members": []}
+    merged, known = kept(dict(fresh), report, ("gradient",))
+    assert merged["provenance"] == report["provenance"] and merged["members"] == []
+    assert known[first["name"]] is first
+    remeasured, _ = kept(dict(fresh), report, ("mujoco",))
+    assert remeasured["gradient"] is report["gradient"]
+    assert kept(dict(fresh), None, ("gradient",)) == (fresh, {})
+
+    assert checked_sampler(lambda: np.full(2, np.inf))[2] == "non-finite gradient"
+    assert checked_sampler(lambda: 1 / 0)[2].startswith("ZeroDivisionError")
+    sampler, seconds, error = checked_sampler(lambda: np.ones(2))
+    assert error is None and seconds >= 0.0 and sampler() is None
+
+
 def test_stress_results_redraw_and_the_docs_quote_them(tmp_path):
     """The committed stress results rebuild the same markdown (`--report-only`), record the
     code they measured, cover the battery and every shipped model, and the hard-cases guide's

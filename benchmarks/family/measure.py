@@ -136,25 +136,38 @@ def ratios(curves):
     }
 
 
-def measure_member(member: Member, seed: int, *, horizons, rtols, dts, repeats):
-    """Everything measured on one member."""
+def member_start(member: Member, seed: int):
+    """`(scene, MuJoCo model, state)`: `member` in both simulators at its tumbling start
+    (drawn from `seed`)."""
     scene = member_scene(member)
     model = mujoco_model(member, MUJOCO_DT)
     qpos, qvel = initial_qpos_qvel(model, member.rate, seed)
-    state = bd.state_from_mujoco(scene.system, qpos, qvel, qpos0=model.qpos0)
-    t1, reference, agreement = predictable_horizon(scene, state, horizons)
-    curves = {}
-    if t1 is not None:
-        options = dict(t1=t1, rtols=rtols, dts=dts, repeats=repeats)
-        curves = solves(scene, state, member, reference, **options)
+    return scene, model, bd.state_from_mujoco(scene.system, qpos, qvel, qpos0=model.qpos0)
+
+
+def describe(member: Member, model, horizon, agreement):
+    """What every part records of a member: its structure and predictable horizon."""
     return {
         "name": member.name,
         "bodies": member.bodies,
         "kind": member.kind,
         "rate": member.rate,
         "dofs": int(model.nv),
-        "horizon": t1,
+        "horizon": horizon,
         "reference_agreement": agreement,
+    }
+
+
+def measure_member(member: Member, seed: int, *, horizons, rtols, dts, repeats):
+    """Everything measured against MuJoCo on one member."""
+    scene, model, state = member_start(member, seed)
+    t1, reference, agreement = predictable_horizon(scene, state, horizons)
+    curves = {}
+    if t1 is not None:
+        options = dict(t1=t1, rtols=rtols, dts=dts, repeats=repeats)
+        curves = solves(scene, state, member, reference, **options)
+    return {
+        **describe(member, model, t1, agreement),
         "field": field_ratio(scene, state, model, repeats),
         "solves": curves,
         "ratios": ratios(curves),

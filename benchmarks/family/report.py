@@ -1,13 +1,15 @@
 """`family.md`: each target's worst case over the family beside its median, then every
-member's figures; redrawn from `family.json` alone (`--report-only`)."""
+member's figures; redrawn from `family.json` alone (`--report-only`). Each part of the
+run (`cli.PARTS`) has its targets and columns where the JSON holds it."""
 
 import statistics
 
 from benchmarks._report import fmt, provenance_lines
+from benchmarks.family.gradient import DEFAULT, LIMITS
 from benchmarks.family.measure import FINE_ERROR, REFERENCE_AGREEMENT
 from benchmarks.speed.report import measured
 
-# The targets: (key, what, limit).
+# The targets against MuJoCo: (key, what, limit).
 TARGETS = (
     ("field", "one field evaluation / mj_forward", 5.0),
     ("coarse", "solve to MuJoCo RK4 dt = 1e-2's error: RKMK87 / MuJoCo time", 1.0),
@@ -15,18 +17,51 @@ TARGETS = (
 )
 
 
+def adjoint_label(report, name):
+    """How the report names adjoint `name` of the gradient part."""
+    if name != DEFAULT:
+        return name
+    named = report["gradient"]["default_adjoint"]
+    return "simulate's default" + (f" ({named})" if named else "")
+
+
+def gradient_targets(report):
+    """The gradient part's targets, `(key, what, limit)`: per adjoint, and the VJPs."""
+    if "gradient" not in report:
+        return ()
+    return (
+        *(
+            (name, f"gradient / forward solve, {adjoint_label(report, name)}", LIMITS["grad"])
+            for name in report["gradient"]["adjoints"]
+        ),
+        ("field_vjp", "body field's VJP / body field (one stage)", LIMITS["vjp"]),
+        ("step_vjp", "RKMK87 step's VJP / step", LIMITS["vjp"]),
+    )
+
+
+def has_mujoco(report):
+    """Whether the report holds the part against MuJoCo (a gradient-only run's does not)."""
+    return any("field" in m for m in report["members"])
+
+
 def value(member, key):
-    """A member's figure for target `key` (None where its sweep did not reach the error)."""
-    return member["field"]["ratio"] if key == "field" else member["ratios"][key]
+    """A member's figure for target `key` (None where its sweep did not reach the error,
+    or it was not measured)."""
+    if key in ("field", "coarse", "fine"):
+        if "field" not in member:
+            return None
+        return member["field"]["ratio"] if key == "field" else member["ratios"][key]
+    return (member.get("gradient") or {}).get("ratios", {}).get(key)
 
 
 def target_rows(report):
     """Per target: (what, median, worst, worst member, limit, met by the worst, members
     measured). A member whose motion is unpredictable over every horizon, or whose MuJoCo
-    sweep does not reach the error, is not measured; one whose bundledyn sweep does not
-    reach it counts as infinite."""
+    sweep does not reach the error, or whose adjoint fails, is not measured; one whose
+    bundledyn sweep does not reach it counts as infinite."""
     rows = []
-    for key, what, limit in TARGETS:
+    targets = (TARGETS if has_mujoco(report) else ()) + gradient_targets(report)
+    for key, what, limit in targets:
         pairs = [(value(m, key), m["name"]) for m in report["members"]]
         measured_ = [(v, name) for v, name in pairs if v is not None]
         if not measured_:
@@ -61,6 +96,7 @@ def markdown(report):
         f"{REFERENCE_AGREEMENT:.0e} (RKMK87's state there is the reference); over 10 s "
         "many of them are chaotic, and a final state's error would measure nothing.",
         "",
+        *gradient_provenance(report),
         "## Targets: the worst case over the family",
         "",
         "| target | median | worst | worst model | limit | met | models |",
@@ -75,26 +111,121 @@ def markdown(report):
         "",
         "## Every model",
         "",
-        "Field: µs per evaluation, median (min–max), and its ratio to `mj_forward`'s. "
-        "Solves, over the horizon (the reference's agreement in brackets): bundledyn's time "
-        "over MuJoCo's at MuJoCo's error with dt = 1e-2 (that error in brackets) and at "
-        f"{FINE_ERROR:.0e}, each interpolated log–log on its sweep; “not reached”: "
-        "bundledyn's sweep (rtol to 1e-12) does not reach the error; “–”: MuJoCo's "
-        "(dt to 1e-2/32) does not, or no horizon is predictable.",
+        *(MUJOCO_COLUMNS_TEXT if has_mujoco(report) else []),
+        *(gradient_text(report) if "gradient" in report else []),
+        *table(report, columns(report)),
+        *failures(report),
+    ]
+    return "\n".join(lines) + "\n"
+
+
+MUJOCO_COLUMNS_TEXT = [
+    "Field: µs per evaluation, median (min–max), and its ratio to `mj_forward`'s. "
+    "Solves, over the horizon (the reference's agreement in brackets): bundledyn's time "
+    "over MuJoCo's at MuJoCo's error with dt = 1e-2 (that error in brackets) and at "
+    f"{FINE_ERROR:.0e}, each interpolated log–log on its sweep; “not reached”: "
+    "bundledyn's sweep (rtol to 1e-12) does not reach the error; “–”: MuJoCo's "
+    "(dt to 1e-2/32) does not, or no horizon is predictable.",
+    "",
+]
+
+
+def gradient_provenance(report):
+    """Where the gradients were measured apart (`--only gradient`): their code and run."""
+    g = report.get("gradient")
+    if g is None or g["provenance"] == report["provenance"]:
+        return []
+    return [
+        *provenance_lines(g, what="The gradients were measured apart. Code"),
+        measured(g, g["environment"]["machine"]),
         "",
-        "| model | dofs | field [µs] | / mj_forward | horizon [s] (agreement) "
-        f"| at dt = 1e-2's error | at {FINE_ERROR:.0e} |",
-        "|---|--:|--:|--:|--:|--:|--:|",
+    ]
+
+
+def gradient_text(report):
+    """The gradient part's settings and columns."""
+    g = report["gradient"]
+    adjoints = ", ".join(adjoint_label(report, name) for name in g["adjoints"])
+    return [
+        "Gradients, over the horizon: `jax.grad` of |p(t1)|² + |q(t1)|² (the base's final "
+        "position and the final shape) with respect to the initial base twist, with "
+        f"bundledyn's default solver ({g['solver']}) at rtol {g['rtol']:.0e} (atol "
+        f"{g['atol']:.0e}), over the forward solve (the loss) timed in alternation with it "
+        f"(forward: ms, median): for {adjoints}; “–”: the adjoint failed (below) or no "
+        "horizon is predictable. VJPs in compiled loops: the body field the stages "
+        "evaluate (`SceneTerm.body_vf`) and one RKMK87 step at the solve's mean step, "
+        "each over itself.",
+        "",
+    ]
+
+
+def columns(report):
+    """The per-model table's columns, `(header, alignment, cell(member))`, of the parts
+    the report holds."""
+    mujoco, gradient = has_mujoco(report), "gradient" in report
+    cols = [("model", "---", lambda m: m["name"]), ("dofs", "--:", lambda m: str(m["dofs"]))]
+    if mujoco:
+        cols += [
+            ("field [µs]", "--:", lambda m: fmt(m["field"]["field"], 1e6) if "field" in m else "–"),
+            (
+                "/ mj_forward",
+                "--:",
+                lambda m: f"{m['field']['ratio']:.3g}" if "field" in m else "–",
+            ),
+        ]
+    cols.append(("horizon [s] (agreement)", "--:", _horizon))
+    if mujoco:
+        cols += [
+            ("at dt = 1e-2's error", "--:", _coarse),
+            (f"at {FINE_ERROR:.0e}", "--:", lambda m: _cell(value(m, "fine"))),
+        ]
+    if gradient:
+        cols.append(("forward [ms]", "--:", _forward))
+        cols += [
+            (f"grad: {name}", "--:", lambda m, k=name: _cell(value(m, k)))
+            for name in report["gradient"]["adjoints"]
+        ]
+        cols += [
+            (f"{unit} VJP / {unit}", "--:", lambda m, k=f"{unit}_vjp": _cell(value(m, k)))
+            for unit in ("field", "step")
+        ]
+    return cols
+
+
+def table(report, cols):
+    """The per-model table's lines."""
+    lines = [
+        "| " + " | ".join(header for header, _, _ in cols) + " |",
+        "|" + "|".join(align for _, align, _ in cols) + "|",
     ]
     for m in report["members"]:
-        r = m["ratios"]
-        horizon = "none" if m["horizon"] is None else f"{m['horizon']:g}"
-        coarse = (
-            "–" if r["coarse_error"] is None else f"{_cell(r['coarse'])} ({r['coarse_error']:.1e})"
-        )
-        lines.append(
-            f"| {m['name']} | {m['dofs']} | {fmt(m['field']['field'], 1e6)} "
-            f"| {m['field']['ratio']:.3g} | {horizon} ({m['reference_agreement']:.0e}) "
-            f"| {coarse} | {_cell(r['fine'])} |"
-        )
-    return "\n".join(lines) + "\n"
+        lines.append("| " + " | ".join(cell(m) for _, _, cell in cols) + " |")
+    return lines
+
+
+def failures(report):
+    """The adjoints that failed, and why."""
+    lines = [
+        f"- {m['name']}, {name}: {result['error']}"
+        for m in report["members"]
+        for name, result in ((m.get("gradient") or {}).get("adjoints") or {}).items()
+        if "error" in result
+    ]
+    return ["", "Failed adjoints:", "", *lines] if lines else []
+
+
+def _horizon(m):
+    horizon = "none" if m["horizon"] is None else f"{m['horizon']:g}"
+    return f"{horizon} ({m['reference_agreement']:.0e})"
+
+
+def _coarse(m):
+    if "ratios" not in m or m["ratios"]["coarse_error"] is None:
+        return "–"
+    r = m["ratios"]
+    return f"{_cell(r['coarse'])} ({r['coarse_error']:.1e})"
+
+
+def _forward(m):
+    g = m.get("gradient")
+    return "–" if not g else f"{g['forward']['median'] * 1e3:.3g}"
