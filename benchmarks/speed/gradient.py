@@ -12,25 +12,41 @@ from benchmarks._timing import blocking, interleaved, loop_sampler
 from benchmarks.speed.config import BASELINE_DEPTHS, LOOP_EVALS, simulate_options
 
 
+def default_adjoint_name():
+    """The adjoint `bd.simulate` differentiates RKMK87's solves with when given none."""
+    from bundledyn._simulate import default_adjoint
+
+    return type(default_adjoint(bd.RKMK87())).__name__
+
+
 def gradient_cost(repeats, t1, rtol=1e-6):
-    """Part 5a: `jax.grad` of a loss on the rollout over the forward solve (checkpointed),
-    timed in alternation with the units of `gradient_units` and the baselines."""
+    """Part 5a: `jax.grad` of a loss on the rollout over the forward solve, with
+    `simulate`'s default adjoint and with diffrax's `RecursiveCheckpointAdjoint`, timed in
+    alternation with the units of `gradient_units` and the baselines."""
+    import diffrax
     import jax
 
     scene = chain_scene(5)
     s = initial_state(scene)
-    loss = rollout_loss(scene, s, t1, **simulate_options("RKMK87", "adaptive", rtol))
+    options = simulate_options("RKMK87", "adaptive", rtol)
+    loss = rollout_loss(scene, s, t1, **options)
+    checkpointed = rollout_loss(
+        scene, s, t1, adjoint=diffrax.RecursiveCheckpointAdjoint(), **options
+    )
     units, profile = gradient_units(scene, s, t1, rtol)
     baselines = baseline_samplers(t1, rtol)
     samplers = {
         "forward": blocking(jax.jit(loss), s.xi),
         "grad": blocking(jax.jit(jax.grad(loss)), s.xi),
+        "grad_checkpointed": blocking(jax.jit(jax.grad(checkpointed)), s.xi),
     }
     timings = interleaved(samplers | units | baselines, repeats)
     (_, forward), (first, grad) = timings["forward"], timings["grad"]
     return {
+        "adjoint": default_adjoint_name(),
         "forward": forward,
         "grad": grad,
+        "grad_checkpointed": timings["grad_checkpointed"][1],
         "grad_compile": max(first - grad["median"], 0.0),
         "ratio": grad["median"] / forward["median"],
         "baselines": {
@@ -145,8 +161,8 @@ def gradient_units(scene, state, t1, rtol):
 
 
 def gradient_memory(steps):
-    """Part 5b (own process): peak memory of `jax.grad` through a `steps`-step rollout."""
-    import diffrax
+    """Part 5b (own process): peak memory of `jax.grad` through a `steps`-step rollout,
+    differentiated by `simulate`'s default adjoint."""
     import jax
     import jax.numpy as jnp
 
@@ -160,7 +176,6 @@ def gradient_memory(steps):
         dt0=dt,
         solver=bd.RKMK4(),
         max_steps=steps,
-        adjoint=diffrax.RecursiveCheckpointAdjoint(),
     )
     before = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024
     compiled = jax.jit(jax.grad(loss)).lower(s.xi).compile()
@@ -171,6 +186,7 @@ def gradient_memory(steps):
     peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024
     return {
         "steps": steps,
+        "adjoint": default_adjoint_name(),
         "xla_temp_bytes": getattr(analysis, "temp_size_in_bytes", None),
         "peak_rss_bytes": peak,
         "rss_before_bytes": before,

@@ -7,21 +7,36 @@ from benchmarks._report import fmt
 def gradient_lines(report):
     """Part 5's markdown."""
     chain, g, m = report["chain"], report["gradient"], report["memory"]
+    # Results written before 2026-11-26 differentiated with diffrax's adjoint only.
+    adjoint = g.get("adjoint", "RecursiveCheckpointAdjoint")
     lines = [
         "",
         "## 5. Gradients",
         "",
-        f"- `jax.grad` of a loss on the {chain['t1']:g} s rollout (RecursiveCheckpointAdjoint): "
-        f"{fmt(g['grad'], 1e3)} ms against {fmt(g['forward'], 1e3)} ms forward, "
+        f"- `jax.grad` of a loss on the {chain['t1']:g} s rollout ({adjoint}, `simulate`'s "
+        f"default): {fmt(g['grad'], 1e3)} ms against {fmt(g['forward'], 1e3)} ms forward, "
         f"ratio {g['ratio']:.2f} (of the medians; of the minima "
         f"{g['grad']['min'] / g['forward']['min']:.2f}, less moved by the host's phases).",
-        f"- {m['steps']} RKMK4 steps, gradient through all of them: peak memory of the whole "
+        *checkpointed_lines(g),
+        f"- {m['steps']} RKMK4 steps ({m.get('adjoint', 'RecursiveCheckpointAdjoint')}), "
+        "gradient through all of them: peak memory of the whole "
         f"process {m['peak_rss_bytes'] / 1e9:.2f} GB ({m['rss_before_bytes'] / 1e9:.2f} GB "
         "before compiling the gradient: imports and JAX's runtime), XLA temporary buffers "
         f"{(m['xla_temp_bytes'] or 0) / 1e6:.2f} MB, {m['seconds']:.1f} s, gradient finite: "
         f"{m['grad_finite']}.",
     ]
     return lines + baseline_lines(g) + gradient_profile_lines(report)
+
+
+def checkpointed_lines(g):
+    """The same gradient with diffrax's `RecursiveCheckpointAdjoint`, where it was timed."""
+    if "grad_checkpointed" not in g:
+        return []
+    c = g["grad_checkpointed"]
+    return [
+        f"- The same with diffrax's `RecursiveCheckpointAdjoint`, timed in alternation: "
+        f"{fmt(c, 1e3)} ms, ratio {c['median'] / g['forward']['median']:.2f}."
+    ]
 
 
 def baseline_lines(g):
