@@ -52,6 +52,7 @@ LONGEST_FIRST = (
     "test_identify.py",
     "test_stress.py",
     "test_identify_rigid.py",
+    "test_adjoint.py",
     "test_docs.py",
     "test_invariance_dynamics.py",
 )

@@ -288,6 +288,7 @@ class _Problem(eqx.Module):
         return fn(t, y, eqx.combine(diff_args, self.static_args))
 
     def condition(self, dense_info, diff_args, diff_terms, ta, tb, t):
+        assert self.event is not None  # only events found by a root find come here
         (cond_fn,) = jtu.tree_leaves(self.event.cond_fn, is_leaf=callable)
         return cond_fn(
             t=t,
