@@ -134,17 +134,19 @@ def _record_state(init_state, max_steps):
     )
 
 
-def _forward(y__args__terms, *, loop, saveat, init_state, max_steps, **kwargs):
-    """diffrax's loop, undifferentiated, with the steps' end states recorded besides."""
+def _forward(y__args__terms, *, loop, saveat, init_state, max_steps, record, **kwargs):
+    """diffrax's loop, undifferentiated, with the steps' end states recorded besides where
+    `record` (reverse mode needs them; a solve that is not differentiated does not)."""
     y, args, terms = y__args__terms
     init_state = eqx.tree_at(lambda s: s.y, init_state, y)
-    record = diffrax.SubSaveAt(steps=True)
-    saveat = eqx.tree_at(lambda s: s.subs, saveat, (saveat.subs, record))
-    init_state = eqx.tree_at(
-        lambda s: s.save_state,
-        init_state,
-        (init_state.save_state, _record_state(init_state, max_steps)),
-    )
+    if record:
+        steps = diffrax.SubSaveAt(steps=True)
+        saveat = eqx.tree_at(lambda s: s.subs, saveat, (saveat.subs, steps))
+        init_state = eqx.tree_at(
+            lambda s: s.save_state,
+            init_state,
+            (init_state.save_state, _record_state(init_state, max_steps)),
+        )
     final_state, aux_stats = loop(
         args=args,
         terms=terms,
@@ -155,6 +157,8 @@ def _forward(y__args__terms, *, loop, saveat, init_state, max_steps, **kwargs):
         outer_while_loop=ft.partial(_outer_loop, kind="lax"),
         **kwargs,
     )
+    if not record:
+        return final_state, aux_stats, None
     user_saves, steps = final_state.save_state
     final_state = eqx.tree_at(lambda s: s.save_state, final_state, user_saves)
     return final_state, aux_stats, steps
@@ -162,14 +166,14 @@ def _forward(y__args__terms, *, loop, saveat, init_state, max_steps, **kwargs):
 
 @eqx.filter_custom_vjp
 def _stored_steps_loop(y__args__terms, **kwargs):
-    final_state, aux_stats, _ = _forward(y__args__terms, **kwargs)
+    final_state, aux_stats, _ = _forward(y__args__terms, record=False, **kwargs)
     return final_state, aux_stats
 
 
 @_stored_steps_loop.def_fwd
 def _stored_steps_loop_fwd(perturbed, y__args__terms, **kwargs):
     del perturbed
-    final_state, aux_stats, steps = _forward(y__args__terms, **kwargs)
+    final_state, aux_stats, steps = _forward(y__args__terms, record=True, **kwargs)
     residuals = (steps, final_state)
     return (final_state, aux_stats), residuals
 
