@@ -37,6 +37,7 @@ from ._systems._ball_chart import ball_columns, recharted_shape
 
 __all__ = [
     "AbstractBodyTerm",
+    "AbstractSceneTerm",
     "SceneTerm",
     "split",
     "tangent_of_twist",
@@ -151,30 +152,11 @@ def _scene_body_vf(term, t, y, args):
     return xi, jnp.concatenate([qdot, Udot, qddot])
 
 
-class SceneTerm(AbstractBodyTerm):
-    r"""The diffrax term of a scene: Chevallier's equations (2.6)–(2.7), and the state codec.
+class AbstractSceneTerm(AbstractBodyTerm):
+    r"""A scene's term: the state codec and everything but the field, shared by `SceneTerm`
+    and the variant whose field has a hand-derived reverse pass (`ReverseModeSceneTerm`)."""
 
-    As a term it behaves as `diffrax.ODETerm` of the field on $y = (g, x)$ (`vf` gives
-    $(\dot g, \dot x)$ with $\dot g = g\hat\xi$), and gives the Lie-group solvers the field
-    left-trivialized (`body_vf`). Any diffrax solver integrates it:
-
-    ```python
-    term = bd.SceneTerm(scene)
-    sol = diffrax.diffeqsolve(term, bd.RKMK87(), 0.0, 1.0, None, term.encode(0.0, state),
-                              stepsize_controller=diffrax.PIDController(rtol=1e-8, atol=1e-8))
-    ```
-
-    **Arguments:**
-
-    - `scene`: the `Scene`.
-    """
-
-    scene: Scene
-
-    def body_vf(self, t, y, args):
-        r"""$(\xi, \dot x)$: the body twist of the pose and $\dot x = (\dot q, \dot U, \ddot q)$,
-        or $\dot U$ when $x = U$."""
-        return _scene_body_vf(self, t, y, args)
+    scene: eqx.AbstractVar[Scene]
 
     def contr(self, t0, t1, **kwargs):
         return t1 - t0
@@ -292,3 +274,29 @@ class SceneTerm(AbstractBodyTerm):
             return Kinematics(t, g, q, xi, qdot)
         shift, _, M = _frame_shift(self.scene.frame, t, g)
         return Kinematics(t, M @ g, q, xi + shift, qdot)
+
+
+class SceneTerm(AbstractSceneTerm):
+    r"""The diffrax term of a scene: Chevallier's equations (2.6)–(2.7), and the state codec.
+
+    As a term it behaves as `diffrax.ODETerm` of the field on $y = (g, x)$ (`vf` gives
+    $(\dot g, \dot x)$ with $\dot g = g\hat\xi$), and gives the Lie-group solvers the field
+    left-trivialized (`body_vf`). Any diffrax solver integrates it:
+
+    ```python
+    term = bd.SceneTerm(scene)
+    sol = diffrax.diffeqsolve(term, bd.RKMK87(), 0.0, 1.0, None, term.encode(0.0, state),
+                              stepsize_controller=diffrax.PIDController(rtol=1e-8, atol=1e-8))
+    ```
+
+    **Arguments:**
+
+    - `scene`: the `Scene`.
+    """
+
+    scene: Scene
+
+    def body_vf(self, t, y, args):
+        r"""$(\xi, \dot x)$: the body twist of the pose and $\dot x = (\dot q, \dot U, \ddot q)$,
+        or $\dot U$ when $x = U$."""
+        return _scene_body_vf(self, t, y, args)

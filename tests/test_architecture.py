@@ -16,9 +16,9 @@ LAYERS = (
     ("lie", {"_lie", "lie", "_linalg", "_xla_flags", "_files", "_paths"}),
     ("systems", {"_systems", "_solids", "_state", "_precision"}),
     ("geometry", {"_geometry", "_holonomy"}),
-    ("dynamics", {"_dynamics"}),
+    ("dynamics", {"_dynamics", "_dynamics_vjp"}),
     ("scene", {"_effects", "_frames", "_scene"}),
-    ("term", {"_term"}),
+    ("term", {"_term", "_reverse_term"}),
     ("integrators", {"_solver"}),
     ("simulate", {"_simulate", "_trajectory"}),
     (

@@ -22,6 +22,8 @@ import jax.tree_util as jtu
 from diffrax._adjoint import _inner_loop, _outer_loop
 from diffrax._integrate import SaveState
 
+from .._reverse_term import for_reverse_mode
+
 __all__ = ["StoredStepsAdjoint"]
 
 
@@ -283,7 +285,7 @@ class _Problem(eqx.Module):
 
     def step(self, y, diff_args, diff_terms, ta, tb):
         args = eqx.combine(diff_args, self.static_args)
-        terms = eqx.combine(diff_terms, self.static_terms)
+        terms = for_reverse_mode(eqx.combine(diff_terms, self.static_terms))
         y1, _, dense_info, _, _ = self.solver.step(terms, ta, tb, y, args, None, False)
         return y1, dense_info
 
@@ -383,12 +385,14 @@ def _stored_steps_loop_bwd(
     init_state,
     progress_meter,
 ):
-    del perturbed, loop, init_state, progress_meter
+    del loop, init_state, progress_meter
     record, final_state = residuals
     grad_final_state, _ = grad_out
     y0, args, terms = y__args__terms
-    diff_args, static_args = eqx.partition(args, eqx.is_inexact_array)
-    diff_terms, static_terms = eqx.partition(terms, eqx.is_inexact_array)
+    # Only what is differentiated: a scene's numbers held constant are not transposed.
+    _, args_perturbed, terms_perturbed = perturbed
+    diff_args, static_args = eqx.partition(args, args_perturbed)
+    diff_terms, static_terms = eqx.partition(terms, terms_perturbed)
     event_kwargs = dict(
         t0=t0,
         t1=t1,

@@ -14,7 +14,7 @@ import jax.tree_util as jtu
 
 from .. import lie
 from .._linalg import dot
-from .._term import AbstractBodyTerm, SceneTerm, split, twist_of_tangent
+from .._term import AbstractBodyTerm, AbstractSceneTerm, split, twist_of_tangent
 
 __all__ = ["body_field", "checked_start", "from_chart", "recharted"]
 
@@ -64,10 +64,10 @@ def recharted(terms, t, y):
     r"""`y` in the coordinates its scene steps best in (`SceneTerm.recharted`: ball joints'
     rotation vectors back in $|\varphi| \le \pi$), the term looked for as `body_field`
     looks for it; `y` itself for any other term."""
-    if isinstance(terms, SceneTerm):
+    if isinstance(terms, AbstractSceneTerm):
         return terms.recharted(t, y)
     inner, direction = getattr(terms, "term", None), getattr(terms, "direction", None)
-    if isinstance(inner, SceneTerm) and direction is not None:
+    if isinstance(inner, AbstractSceneTerm) and direction is not None:
         return inner.recharted(t * direction, y)
     return y
 

@@ -10,15 +10,15 @@ from diffrax import RESULTS
 from .. import lie
 from .._effects import Kinematics
 from .._scene import FloatingBase, Free
-from .._term import SceneTerm
+from .._term import AbstractSceneTerm, SceneTerm
 from ._base import AbstractLieGroupSolver
 from ._chart import checked_start
 from ._interpolation import LieLocalInterpolation
 
 
-def _scene_term(terms) -> SceneTerm:
+def _scene_term(terms) -> AbstractSceneTerm:
     """The `SceneTerm` inside the wrapper that `diffeqsolve` puts around every term."""
-    while not isinstance(terms, SceneTerm):
+    while not isinstance(terms, AbstractSceneTerm):
         terms = terms.term
     return terms
 

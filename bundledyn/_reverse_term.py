@@ -1,0 +1,125 @@
+r"""A scene's term whose field has the hand-derived reverse pass (`body_field_vjp`).
+
+A `jax.custom_vjp` cannot be differentiated in forward mode, which the library needs
+(identification pushes directions through rollouts; the geometry uses `jacfwd`), and one
+nested in a `custom_jvp` rule cannot be transposed. So the custom reverse pass is not put on
+`SceneTerm`'s field: `StoredStepsAdjoint`, which differentiates each step itself in its
+reverse sweep, steps `for_reverse_mode(terms)` there, and the forward solve, forward mode and
+every other adjoint keep the plain field.
+"""
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import jax.tree_util as jtu
+
+from ._dynamics_vjp import body_field_vjp
+from ._effects import Kinematics
+from ._scene import FloatingBase, Scene
+from ._term import AbstractSceneTerm, SceneTerm, _body_field
+
+__all__ = ["ReverseModeSceneTerm", "for_reverse_mode"]
+
+
+def _covered(scene: Scene) -> bool:
+    """Whether the hand-derived reverse pass covers `scene`: a floating base and a free
+    shape in the Galilean frame (any system with $d > 0$, any effects)."""
+    return scene.free_shape and scene.frame is None and isinstance(scene.base, FloatingBase)
+
+
+def _field(scene, t, y):
+    g, x = y
+    d = scene.system.shape_dim
+    q, U, qdot = x[:d], x[d : d + 6], x[d + 6 :]
+    xi, Udot, qddot = _body_field(scene, t, g, q, U, qdot)
+    assert qddot is not None  # a free shape (`_covered`)
+    return xi, jnp.concatenate([qdot, Udot, qddot])
+
+
+@eqx.filter_custom_vjp
+def _reverse_mode_field(scene__y, t):
+    return _field(scene__y[0], t, scene__y[1])
+
+
+@_reverse_mode_field.def_fwd
+def _reverse_mode_field_fwd(perturbed, scene__y, t):
+    out = _field(scene__y[0], t, scene__y[1])
+    return out, out
+
+
+def _materialized(ct, like):
+    return jnp.zeros_like(like) if ct is None else ct
+
+
+@_reverse_mode_field.def_bwd
+def _reverse_mode_field_bwd(out, grad_out, perturbed, scene__y, t):
+    scene, (g, x) = scene__y
+    d = scene.system.shape_dim
+    q, U, qdot = x[:d], x[d : d + 6], x[d + 6 :]
+    xi_bar, xdot_bar = (_materialized(c, o) for c, o in zip(grad_out, out, strict=True))
+    Udot, qddot = out[1][d : d + 6], out[1][d + 6 :]
+
+    def forces_vjp(mu_xi, mu_q):
+        def forces(g, q, xi, qdot):
+            return scene.forces(Kinematics(t, g, q, xi, qdot))
+
+        _, vjp = jax.vjp(forces, g, q, out[0], qdot)  # the field's first output is ξ
+        g_bar, q_bar, xi_bar_f, qdot_bar = vjp((mu_xi, mu_q))
+        return q_bar, xi_bar_f, qdot_bar, g_bar
+
+    q_bar, U_bar, qdot_bar, g_bar = body_field_vjp(
+        scene.system,
+        q,
+        U,
+        qdot,
+        Udot,
+        qddot,
+        (xi_bar, xdot_bar[d : d + 6], xdot_bar[d + 6 :]),
+        forces_vjp,
+    )
+    y_bar = (g_bar, jnp.concatenate([q_bar, U_bar, qdot_bar + xdot_bar[:d]]))
+    if not any(jtu.tree_leaves(perturbed[0])):
+        return eqx.filter(scene, lambda _: False), y_bar
+    # The scene's numbers (inertias, effect constants): autodiff of the field at the fixed
+    # state, which transposes only what depends on them.
+    _, vjp = jax.vjp(lambda s: _field(s, t, (g, x)), scene)
+    return vjp((xi_bar, xdot_bar))[0], y_bar
+
+
+@eqx.filter_jit
+def _reverse_mode_body_vf(term, t, y, args):
+    return _reverse_mode_field((term.scene, y), t)
+
+
+class ReverseModeSceneTerm(AbstractSceneTerm):
+    r"""`SceneTerm` with the field's hand-derived reverse pass (`body_field_vjp`): the same
+    field and codec, for reverse mode only (it has no forward-mode derivative).
+
+    **Arguments:**
+
+    - `scene`: a `Scene` with a floating base and a free shape in the Galilean frame.
+    """
+
+    scene: Scene
+
+    def __check_init__(self):
+        if not _covered(self.scene):
+            raise ValueError(
+                "`ReverseModeSceneTerm` needs a scene with a floating base and a free shape "
+                "(d > 0) in the Galilean frame; use `SceneTerm` for any other scene."
+            )
+
+    def body_vf(self, t, y, args):
+        r"""$(\xi, \dot x)$, $\dot x = (\dot q, \dot U, \ddot q)$, as `SceneTerm.body_vf`."""
+        return _reverse_mode_body_vf(self, t, y, args)
+
+
+def for_reverse_mode(terms):
+    """`terms` with every `SceneTerm` that `ReverseModeSceneTerm` covers replaced by it."""
+
+    def swap(x):
+        if isinstance(x, SceneTerm) and _covered(x.scene):
+            return ReverseModeSceneTerm(x.scene)
+        return x
+
+    return jtu.tree_map(swap, terms, is_leaf=lambda x: isinstance(x, SceneTerm))

@@ -1,0 +1,169 @@
+"""The field's hand-derived reverse pass (`body_field_vjp`, used by `StoredStepsAdjoint`)
+equals autodiff of the reference (Hamel) form and central differences, on every system
+kind with a shape, at generic and singular states."""
+
+import functools
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+from systems import SYSTEMS
+
+import bundledyn as bd
+from bundledyn._dynamics import reference_accelerations
+from bundledyn._effects import Kinematics
+from bundledyn._geometry import connection
+from bundledyn._reverse_term import ReverseModeSceneTerm, for_reverse_mode
+from bundledyn._systems._ball_chart import ball_columns
+
+SHAPED = [name for name, make in SYSTEMS.items() if make().shape_dim > 0]
+STATES = ("generic", "rest", "zero shape", "ball near pi")
+
+
+def _scene(name):
+    system = SYSTEMS[name]()
+    d = system.shape_dim
+    effects = [
+        bd.Gravity(9.81, (0.3, -0.2, -1.0)),
+        bd.ShapeSpring(0.7 + 0.1 * jnp.arange(d)),
+        bd.ShapeDamper(0.2),
+    ]
+    return bd.Scene(system, effects)
+
+
+def _state(system, kind, key):
+    """`(g, x)` with `x = [q, U, q̇]`: generic; at rest (ω = 0, q̇ = 0); at the zero shape
+    (every ball joint at θ = 0); or with every ball joint's rotation at π - 1e-6."""
+    d = system.shape_dim
+    k = jax.random.split(key, 4)
+    g = bd.lie.se3_exp(0.5 * jax.random.normal(k[0], (6,)))
+    q = 0.5 * jax.random.normal(k[1], (d,))
+    U = jax.random.normal(k[2], (6,))
+    qdot = jax.random.normal(k[3], (d,))
+    if kind == "rest":
+        U, qdot = jnp.zeros(6), jnp.zeros(d)
+    if kind == "zero shape":
+        q = jnp.zeros(d)
+    if kind == "ball near pi":
+        for cols in ball_columns(system):
+            q = q.at[cols].set((np.pi - 1e-6) * jnp.array([0.6, 0.0, 0.8]))
+    return g, jnp.concatenate([q, U, qdot])
+
+
+def _reference_field(scene, t, y):
+    r"""The field in $(q, U, \dot q)$ from the reference form alone: $\xi = U - A\dot q$,
+    $(\dot\xi, \ddot q)$ of `reference_accelerations` (autodiff's metric derivative) and
+    $\dot U = \dot\xi + \tfrac{d}{dt}(A\dot q)$."""
+    g, x = y
+    system = scene.system
+    d = system.shape_dim
+    q, U, qdot = x[:d], x[d : d + 6], x[d + 6 :]
+    xi = U - connection(system, q) @ qdot
+    F, Q = scene.forces(Kinematics(t, g, q, xi, qdot))
+    xi_dot, qddot = reference_accelerations(system, q, xi, qdot, F, Q)
+    _, dA_qdot = jax.jvp(lambda q: connection(system, q) @ qdot, (q,), (qdot,))
+    Udot = xi_dot + dA_qdot + connection(system, q) @ qddot
+    return xi, jnp.concatenate([qdot, Udot, qddot])
+
+
+def _reverse_field(scene, t, y):
+    return ReverseModeSceneTerm(scene).body_vf(t, y, None)
+
+
+@functools.cache
+def _pullbacks(name, kind):
+    """Both fields' VJPs at one state: with respect to the state and the scene's numbers,
+    and with respect to the state alone (the scene held constant)."""
+    scene = _scene(name)
+    y = _state(scene.system, kind, jax.random.PRNGKey(3))
+    d = scene.system.shape_dim
+    k = jax.random.split(jax.random.PRNGKey(4), 2)
+    cotangent = (jax.random.normal(k[0], (6,)), jax.random.normal(k[1], (2 * d + 6,)))
+    params, static = eqx.partition(scene, eqx.is_inexact_array)
+
+    def pullback(field, both):
+        def run(params, y):
+            s = eqx.combine(params, static)
+            if both:
+                return jax.vjp(lambda p, y: field(eqx.combine(p, static), 0.3, y), params, y)[1](
+                    cotangent
+                )
+            return jax.vjp(lambda y: field(s, 0.3, y), y)[1](cotangent)
+
+        return jax.jit(run)(params, y)
+
+    vjps = {
+        (field.__name__, both): pullback(field, both)
+        for field in (_reference_field, _reverse_field)
+        for both in (True, False)
+    }
+    return vjps, (params, y)
+
+
+def _on_tangents(cotangent, value):
+    """A cotangent as the covector it is on the tangent space: for a pose (a `(..., 4, 4)`
+    leaf, a state's pose or a link's placement) its values on $P\\hat e_i$, $i < 6$, which
+    is all that any two derivations must agree on; for a symmetric matrix (an inertia) its
+    symmetric part, likewise; any other leaf as it is."""
+    if value.shape[-2:] == (4, 4):
+        basis = jax.vmap(bd.lie.hat)(jnp.eye(6, dtype=value.dtype))
+        return jnp.einsum("...ab,...ac,icb->...i", cotangent, value, basis)
+    square = value.ndim >= 2 and value.shape[-1] == value.shape[-2]
+    if square and np.allclose(value, np.swapaxes(value, -1, -2)):
+        return 0.5 * (cotangent + jnp.swapaxes(cotangent, -1, -2))
+    return cotangent
+
+
+@pytest.mark.parametrize("kind", STATES)
+@pytest.mark.parametrize("name", SHAPED)
+def test_reverse_pass_equals_autodiff_of_the_reference_form(name, kind):
+    if kind == "ball near pi" and ball_columns(SYSTEMS[name]()).size == 0:
+        pytest.skip("no ball joint")
+    vjps, primals = _pullbacks(name, kind)
+    for both in (True, False):
+        ours = jax.tree.leaves(vjps["_reverse_field", both])
+        reference = jax.tree.leaves(vjps["_reference_field", both])
+        values = jax.tree.leaves(primals if both else primals[1])
+        assert len(ours) == len(reference) == len(values)
+        for a, b, value in zip(ours, reference, values, strict=True):
+            a, b = _on_tangents(a, value), _on_tangents(b, value)
+            assert np.all(np.isfinite(np.asarray(a)))
+            scale = max(float(jnp.max(jnp.abs(b), initial=0.0)), 1.0)
+            np.testing.assert_allclose(np.asarray(a), np.asarray(b), rtol=0, atol=1e-10 * scale)
+
+
+@pytest.mark.parametrize("name", SHAPED)
+def test_reverse_pass_matches_central_differences(name):
+    scene = _scene(name)
+    y = _state(scene.system, "generic", jax.random.PRNGKey(5))
+    g, x = y
+    k = jax.random.split(jax.random.PRNGKey(6), 4)
+    out = _reverse_field(scene, 0.3, y)
+    cotangent = tuple(jax.random.normal(kk, o.shape) for o, kk in zip(out, k[:2], strict=True))
+    g_bar, x_bar = jax.vjp(lambda y: _reverse_field(scene, 0.3, y), y)[1](cotangent)[0]
+    xi_dir, x_dir = jax.random.normal(k[2], (6,)), jax.random.normal(k[3], x.shape)
+
+    def value(h):  # the pose moved along its tangent g·ξ̂, the rest along x_dir
+        moved = (g @ bd.lie.se3_exp(h * xi_dir), x + h * x_dir)
+        return sum(
+            jnp.vdot(c, o)
+            for c, o in zip(cotangent, _reverse_field(scene, 0.3, moved), strict=True)
+        )
+
+    h = 1e-5
+    differences = (value(h) - value(-h)) / (2 * h)
+    predicted = jnp.vdot(g_bar, g @ bd.lie.hat(xi_dir)) + jnp.vdot(x_bar, x_dir)
+    np.testing.assert_allclose(float(predicted), float(differences), rtol=1e-7, atol=1e-8)
+
+
+def test_only_scenes_it_covers_are_swapped():
+    chain = _scene("chain5")
+    assert isinstance(for_reverse_mode(bd.SceneTerm(chain)), ReverseModeSceneTerm)
+    rigid = bd.Scene(SYSTEMS["rigid_body"]())
+    assert isinstance(for_reverse_mode(bd.SceneTerm(rigid)), bd.SceneTerm)
+    framed = bd.Scene(chain.system, frame=bd.FreeFalling(9.81, (0.0, 0.0, -1.0)))
+    assert isinstance(for_reverse_mode(bd.SceneTerm(framed)), bd.SceneTerm)
+    with pytest.raises(ValueError, match="floating base and a free shape"):
+        ReverseModeSceneTerm(rigid)
