@@ -100,6 +100,7 @@ OPTIONS = {
 
 CHECKPOINTED = diffrax.RecursiveCheckpointAdjoint()
 STORED = bd.StoredStepsAdjoint()
+HAND_DERIVED = bd.StoredStepsAdjoint(field_reverse="hand-derived")
 
 
 def _assert_gradients_equal(ours, reference):
@@ -141,17 +142,23 @@ def _twist_gradient(case, adjoint, options_key):
 @pytest.mark.parametrize("options", ["RKMK4 ts"])
 def test_with_the_hand_derived_field_reverse_pass_gradients_equal_checkpointed_ones(options):
     # A chain under gravity, a spring and a damper: `StoredStepsAdjoint` steps the field
-    # with its hand-derived reverse pass (`ReverseModeSceneTerm`), diffrax autodiff's.
+    # with its hand-derived reverse pass (`ReverseModeSceneTerm`), diffrax with autodiff's.
     case = "chain, effects"
     params = _params(case)
     _assert_gradients_equal(
-        _gradient(case, STORED, options)(params), _gradient(case, CHECKPOINTED, options)(params)
+        _gradient(case, HAND_DERIVED, options)(params),
+        _gradient(case, CHECKPOINTED, options)(params),
     )
     xi = params[0]
     _assert_gradients_equal(
-        _twist_gradient(case, STORED, options)(xi),
+        _twist_gradient(case, HAND_DERIVED, options)(xi),
         _twist_gradient(case, CHECKPOINTED, options)(xi),
     )
+
+
+def test_an_unknown_field_reverse_pass_is_refused():
+    with pytest.raises(ValueError, match="'autodiff' or 'hand-derived'"):
+        bd.StoredStepsAdjoint(field_reverse="manual")
 
 
 def test_the_event_stops_the_solve_at_its_root():

@@ -287,10 +287,10 @@ def test_family_gradient_part_reports_and_merges(monkeypatch):
         member.pop("gradient", None)
     first, second = report["members"][:2]
     first["gradient"] = _gradient_part(
-        0.01, dict(zip(names, (3.0, 3.5, 9.0), strict=True)), (2.0, 2.5)
+        0.01, dict(zip(names, (3.0, 3.2, 3.5, 9.0), strict=True)), (2.0, 2.5)
     )
     second["gradient"] = _gradient_part(
-        0.02, dict(zip(names[:2], (5.0, 2.0), strict=True)), (4.0, 1.0), names[2]
+        0.02, dict(zip(names[:3], (5.0, 4.5, 2.0), strict=True)), (4.0, 1.0), names[3]
     )
     rows = {row[0]: row for row in target_rows(report)}
     (default,) = (row for what, row in rows.items() if "simulate's default" in what)
@@ -299,8 +299,8 @@ def test_family_gradient_part_reports_and_merges(monkeypatch):
     assert backsolve[2:] == (9.0, first["name"], 4.0, False, 1)
     assert rows["RKMK87 step's VJP / step"][2:4] == (2.5, first["name"])
     text = markdown(report)
-    assert f"| {first['name']} |" in text and "| 10 | 3 | 3.5 | 9 | 2 | 2.5 |" in text
-    assert "| 20 | 5 | 2 | – | 4 | 1 |" in text
+    assert f"| {first['name']} |" in text and "| 10 | 3 | 3.2 | 3.5 | 9 | 2 | 2.5 |" in text
+    assert "| 20 | 5 | 4.5 | 2 | – | 4 | 1 |" in text
     assert f"- {second['name']}, BacksolveAdjoint: RuntimeError: diverged" in text
     assert "| one field evaluation / mj_forward |" in text
 
@@ -308,7 +308,7 @@ def test_family_gradient_part_reports_and_merges(monkeypatch):
         "members": [{k: v for k, v in first.items() if k not in ("field", "solves", "ratios")}]
     }
     text = markdown(alone)
-    assert "mj_forward" not in text and "| 3 | 3.5 | 9 | 2 | 2.5 |" in text
+    assert "mj_forward" not in text and "| 3 | 3.2 | 3.5 | 9 | 2 | 2.5 |" in text
 
     fresh = {"horizons": report["horizons"], "members": []}
     merged, known = kept(dict(fresh), report, ("gradient",))

@@ -43,10 +43,16 @@ def default_adjoint_name() -> str:
 
 
 def adjoints() -> dict:
-    """The adjoints compared: `simulate`'s default (None), and diffrax's checkpointed
-    discretise-then-optimise and its continuous backsolve."""
+    """The adjoints compared: `simulate`'s default (None), the same with the field's
+    hand-derived reverse pass, and diffrax's checkpointed discretise-then-optimise and its
+    continuous backsolve."""
+    import bundledyn as bd
+
     return {
         DEFAULT: None,
+        "StoredStepsAdjoint, hand-derived field": bd.StoredStepsAdjoint(
+            field_reverse="hand-derived"
+        ),
         "RecursiveCheckpointAdjoint": diffrax.RecursiveCheckpointAdjoint(),
         "BacksolveAdjoint": diffrax.BacksolveAdjoint(),
     }

@@ -131,32 +131,25 @@ def vjp_unit(fn):
 def gradient_units(scene, state, t1, rtol):
     """Part 5c: samplers of where the gradient's time goes, per call in compiled loops
     (`loop_sampler`): the body field the RKMK stages evaluate (`bd.SceneTerm.body_vf`), one
-    `RKMK87` step at the forward solve's mean step, and their VJPs as the default adjoint's
-    reverse sweep takes them (through the field's hand-derived reverse pass where it covers
-    the scene, `ReverseModeSceneTerm`); with the solve's steps (accepted and rejected)."""
-    from bundledyn._reverse_term import for_reverse_mode
-
+    `RKMK87` step at the forward solve's mean step, and their VJPs; with the solve's steps
+    (accepted and rejected)."""
     options = simulate_options("RKMK87", "adaptive", rtol)
     steps = int(bd.simulate(scene, state, t1, **options).stats["num_steps"])
     term, solver = bd.SceneTerm(scene), bd.RKMK87(dense_output=False)
     y = term.encode(0.0, state)
 
-    def field(term):
-        def unit(i, y):  # the twist as a 4×4 matrix, so that the loop can feed it back as y
-            xi, xdot = term.body_vf(0.0, y, None)
-            return bd.lie.se3_hat(xi), xdot
+    def field(i, y):  # the twist as a 4×4 matrix, so that the loop can feed it back as y
+        xi, xdot = term.body_vf(0.0, y, None)
+        return bd.lie.se3_hat(xi), xdot
 
-        return unit
+    def step(i, y):
+        return solver.step(term, 0.0, t1 / steps, y, None, None, False)[0]
 
-    def step(term):
-        return lambda i, y: solver.step(term, 0.0, t1 / steps, y, None, None, False)[0]
-
-    reverse = for_reverse_mode(term)
     units = {
-        "field": field(term),
-        "field_vjp": vjp_unit(field(reverse)),
-        "step": step(term),
-        "step_vjp": vjp_unit(step(reverse)),
+        "field": field,
+        "field_vjp": vjp_unit(field),
+        "step": step,
+        "step_vjp": vjp_unit(step),
     }
     calls = {"field": LOOP_EVALS, "step": LOOP_EVALS // 10}
     samplers = {k: loop_sampler(fn, y, calls[k.split("_")[0]]) for k, fn in units.items()}
