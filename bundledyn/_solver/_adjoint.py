@@ -77,12 +77,14 @@ class StoredStepsAdjoint(diffrax.AbstractAdjoint):
     - `field_reverse`: how each step's VJP passes through a scene's field: `"autodiff"`
       (default) or `"hand-derived"`, the field's reverse pass written out
       (`ReverseModeSceneTerm`: a floating base and a free shape in the Galilean frame;
-      other scenes keep autodiff). The same gradients either way; which is faster depends
-      on the model: on a family of trees (`benchmarks/`) the hand-derived one cut the field's
-      VJP from a median 6.1x to 5.2x the field (worst 9.4x to 6.7x) and the gradient of
-      hinge trees and the humanoid by 7-12 %, but lengthened that of ball-joint and
-      composite-joint trees by 13-23 %: its second-order part, two forward-mode derivatives
-      of the metric jet's forms, costs about three times as much inside a step as alone.
+      other scenes keep autodiff). The same gradients either way. It makes the field's VJP
+      cheaper (on a family of trees, `benchmarks/`, 4.0-5.3x the field alone where
+      autodiff's is 5.5-7.6x, except with ball joints), but inside a step its second-order
+      part (two forward-mode derivatives of the metric jet's forms) costs about three times
+      as much as alone, and whether the whole gradient is shorter is within the runs' noise:
+      faster in 12 of 17 members of one family run (median 8.6x against 9.0x the forward
+      solve), slower by 13-23 % on ball- and composite-joint trees in a separate alternated
+      comparison. Hence an option, not the default.
     """
 
     max_memory: int = eqx.field(default=2**30, static=True)
