@@ -16,7 +16,7 @@ import jax.tree_util as jtu
 from ._dynamics_vjp import body_field_vjp
 from ._effects import Kinematics
 from ._scene import FloatingBase, Scene
-from ._term import AbstractSceneTerm, SceneTerm, _body_field
+from ._term import AbstractSceneTerm, SceneTerm, scene_field
 
 __all__ = ["ReverseModeSceneTerm", "for_reverse_mode"]
 
@@ -31,7 +31,7 @@ def _field(scene, t, y):
     g, x = y
     d = scene.system.shape_dim
     q, U, qdot = x[:d], x[d : d + 6], x[d + 6 :]
-    xi, Udot, qddot = _body_field(scene, t, g, q, U, qdot)
+    xi, Udot, qddot = scene_field(scene, t, g, q, U, qdot)
     assert qddot is not None  # a free shape (`_covered`)
     return xi, jnp.concatenate([qdot, Udot, qddot])
 

@@ -39,6 +39,7 @@ __all__ = [
     "AbstractBodyTerm",
     "AbstractSceneTerm",
     "SceneTerm",
+    "scene_field",
     "split",
     "tangent_of_twist",
     "twist_of_tangent",
@@ -105,7 +106,7 @@ def _frame_shift(frame: AbstractFrame, t, g):
     return matmul(Ad_inv, theta), matmul(Ad_inv, theta_dot), M
 
 
-def _body_field(scene: Scene, t, g, q, U, qdot):
+def scene_field(scene: Scene, t, g, q, U, qdot):
     r"""The body twist $\xi$ of the pose and the rates $\dot U$, $\ddot q$ of (2.6)–(2.7).
 
     In a moving frame the locked velocity is relative to it: the true one is $U +
@@ -146,7 +147,7 @@ def _scene_body_vf(term, t, y, args):
     if isinstance(base, PrescribedBase):
         return _driven_field(term.scene, base, t, y[1])
     g, q, U, qdot = term.unpack(t, y)
-    xi, Udot, qddot = _body_field(term.scene, t, g, q, U, qdot)
+    xi, Udot, qddot = scene_field(term.scene, t, g, q, U, qdot)
     if qddot is None:
         return xi, Udot
     return xi, jnp.concatenate([qdot, Udot, qddot])

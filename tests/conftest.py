@@ -53,6 +53,7 @@ LONGEST_FIRST = (
     "test_stress.py",
     "test_identify_rigid.py",
     "test_adjoint.py",
+    "test_field_vjp.py",
     "test_docs.py",
     "test_invariance_dynamics.py",
 )

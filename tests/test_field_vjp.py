@@ -82,32 +82,42 @@ def _reverse_field(scene, t, y):
 
 
 @functools.cache
+def _pullback(name, field, both):
+    """`field`'s VJP on system `name`, compiled once for every state of the system: with
+    respect to the state and the scene's numbers, or to the state alone (the scene held
+    constant)."""
+    static = eqx.partition(_scene(name), eqx.is_inexact_array)[1]
+
+    def run(params, y, cotangent):
+        if both:
+            vjp = jax.vjp(lambda p, y: field(eqx.combine(p, static), 0.3, y), params, y)[1]
+        else:
+            vjp = jax.vjp(lambda y: field(eqx.combine(params, static), 0.3, y), y)[1]
+        return vjp(cotangent)
+
+    return jax.jit(run)
+
+
 def _pullbacks(name, kind):
-    """Both fields' VJPs at one state: with respect to the state and the scene's numbers,
-    and with respect to the state alone (the scene held constant)."""
+    """Both fields' VJPs at one state, with and without the scene's numbers (a tuple of
+    cotangents: the scene's and the state's, or the state's alone)."""
     scene = _scene(name)
     y = _state(scene.system, kind, jax.random.PRNGKey(3))
     d = scene.system.shape_dim
     k = jax.random.split(jax.random.PRNGKey(4), 2)
     cotangent = (jax.random.normal(k[0], (6,)), jax.random.normal(k[1], (2 * d + 6,)))
-    params, static = eqx.partition(scene, eqx.is_inexact_array)
-
-    def pullback(field, both):
-        def run(params, y):
-            s = eqx.combine(params, static)
-            if both:
-                return jax.vjp(lambda p, y: field(eqx.combine(p, static), 0.3, y), params, y)[1](
-                    cotangent
-                )
-            return jax.vjp(lambda y: field(s, 0.3, y), y)[1](cotangent)
-
-        return jax.jit(run)(params, y)
-
+    params = eqx.filter(scene, eqx.is_inexact_array)
     vjps = {
-        (field.__name__, both): pullback(field, both)
-        for field in (_reference_field, _reverse_field)
-        for both in (True, False)
+        (field.__name__, both): _pullback(name, field, both)(params, y, cotangent)
+        for field, both in (
+            (_reference_field, True),
+            (_reverse_field, True),
+            (_reverse_field, False),
+        )
     }
+    # The state's cotangent does not depend on what else is perturbed: the reference's
+    # serves both (its VJP is the dearest to compile).
+    vjps["_reference_field", False] = vjps["_reference_field", True][1:]
     return vjps, (params, y)
 
 
