@@ -256,6 +256,15 @@ def test_family_ratios_at_an_error():
     assert ratios({"RKMK87": short, "MuJoCo RK4": mujoco})["fine"] == float("inf")
     assert ratios({"RKMK87": ours, "MuJoCo RK4": mujoco[:1]})["fine"] is None
     assert ratios({})["coarse"] is None
+    # The alternative solver's, under its own key; a setting whose solve failed (no time,
+    # infinite error) counts for nothing.
+    failed = {"error": float("inf"), "steps": None}
+    r = ratios({"RKMK87": ours, "RKMK54": [failed, *fast], "MuJoCo RK4": mujoco})
+    assert r["RKMK54 fine"] == 0.1 / 4.0 and r["RKMK54 coarse"] == 0.1 / 1.0
+    np.testing.assert_allclose(r["fine"], np.sqrt(1.0 * 2.0) / 4.0)
+    assert ratios({"RKMK87": ours, "RKMK54": [failed], "MuJoCo RK4": mujoco})["RKMK54 fine"] == (
+        float("inf")
+    )
 
 
 def _gradient_part(forward, grads, vjps, failed=None):

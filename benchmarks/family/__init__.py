@@ -8,11 +8,13 @@ energies, float64 on the CPU. Per member, timed in alternation in one process:
 
 1. one evaluation of bundledyn's vector field (`bd.SceneTerm.vf` in a compiled loop)
    against MuJoCo's `mj_forward` at the same state;
-2. a tumbling start solved with bundledyn's default solver (RKMK87, rtol 1e-2 … 1e-12,
-   atol = rtol / 100; MuJoCo's dt = 1e-2 error is coarse on energetic members, and a
-   sweep stopping short of it would time a solve more accurate than the target) and MuJoCo RK4 (`mujoco.rollout`, dt = 1e-2 … 1e-2/32), errors at
-   t1 against a reference; bundledyn's time over MuJoCo's at MuJoCo's error with
-   dt = 1e-2 and at 1e-9, each interpolated log–log on its sweep. t1 is the member's
+2. a tumbling start solved with bundledyn's default solver (RKMK87) and with the
+   lower-order RKMK54 it is chosen over (rtol 1e-2 … 1e-12, atol = rtol / 100: MuJoCo's
+   dt = 1e-2 error is coarse on energetic members, and a sweep stopping short of it
+   would time a solve more accurate than the target) and
+   MuJoCo RK4 (`mujoco.rollout`, dt = 1e-2 … 1e-2/32), errors at t1 against a reference;
+   bundledyn's time over MuJoCo's at MuJoCo's error with dt = 1e-2 and at 1e-9, each
+   interpolated log–log on its sweep. t1 is the member's
    predictable horizon: the longest of 10, 5, 2, 1 and 0.5 s over which RKMK87 and
    diffrax's Dopri8, both at rtol 1e-13, agree to 1e-10 (many members are chaotic over
    10 s, where a final state's error would measure nothing);

@@ -82,16 +82,32 @@ def field_ratio(scene, state, model, repeats):
     return {"field": field, "mj_forward": forward, "ratio": field["median"] / forward["median"]}
 
 
-def solves(scene, state, member, reference, *, t1, rtols, dts, repeats):
-    """bundledyn's default solver over `rtols` and MuJoCo RK4 over `dts` on `t1` seconds:
-    each point's error at t1 against `reference`, its steps and its time."""
-    run = adaptive_run(scene, "RKMK87")
-    points, samplers = {}, {}
-    for rtol in rtols:
+# bundledyn's solvers swept: the default first, then the alternative it is chosen over.
+SOLVERS = ("RKMK87", "RKMK54")
+
+
+def sweep_point(run, state, rtol, t1, reference):
+    """One setting's error at t1 and steps, and a sampler of its time; a solve that raises
+    (a field that is NaN at a step's start: steps far too long for the motion) is a point
+    that reaches no error, and is not timed."""
+    try:
         final, steps = jax.block_until_ready(run(state, rtol, t1))
-        points["RKMK87", rtol] = {"setting": rtol, "error": state_error(final, reference)}
-        points["RKMK87", rtol]["steps"] = int(steps)
-        samplers["RKMK87", rtol] = blocking(run, state, rtol, t1)
+    except Exception:  # eqx.error_if's runtime error: its type is JAX's, not public
+        return {"setting": rtol, "error": float("inf"), "steps": None}, None
+    point = {"setting": rtol, "error": state_error(final, reference), "steps": int(steps)}
+    return point, blocking(run, state, rtol, t1)
+
+
+def solves(scene, state, member, reference, *, t1, rtols, dts, repeats):
+    """bundledyn's `SOLVERS` over `rtols` and MuJoCo RK4 over `dts` on `t1` seconds: each
+    point's error at t1 against `reference`, its steps and its time."""
+    points, samplers = {}, {}
+    for solver in SOLVERS:
+        run = adaptive_run(scene, solver)
+        for rtol in rtols:
+            points[solver, rtol], sampler = sweep_point(run, state, rtol, t1, reference)
+            if sampler is not None:
+                samplers[solver, rtol] = sampler
     for dt in dts:
         model = mujoco_model(member, dt)
         final, samplers["MuJoCo RK4", dt] = rollout_final_state(model, t1, scene.system, state)
@@ -107,33 +123,43 @@ def solves(scene, state, member, reference, *, t1, rtols, dts, repeats):
 
 def time_to_reach(points, target):
     """The time a sweep takes to reach error `target`: interpolated log–log between the
-    points that bracket it, the cheapest point's where every point is within it, None
-    where none is."""
+    timed points that bracket it, the cheapest point's where every point is within it,
+    None where none is."""
+    points = [p for p in points if "time" in p]
+    if not points:
+        return None
     if all(p["error"] <= target for p in points):
         return min(p["time"]["median"] for p in points)
     return time_at_error(points, target)
 
 
+def ratio_key(solver, part):
+    """The key of `solver`'s ratio at the `coarse` or `fine` error: the part's name for
+    the default solver, `"<solver> <part>"` for the others."""
+    return part if solver == SOLVERS[0] else f"{solver} {part}"
+
+
 def ratios(curves):
-    """bundledyn's time over MuJoCo's at MuJoCo's error with dt = 1e-2 (`coarse`) and at
-    `FINE_ERROR` (`fine`): infinite where bundledyn's sweep does not reach the error, None
-    where MuJoCo's does not or nothing was solved."""
+    """Each of bundledyn's `SOLVERS`' time over MuJoCo's at MuJoCo's error with dt = 1e-2
+    (`coarse`) and at `FINE_ERROR` (`fine`), keyed by `ratio_key`, and that coarse error:
+    infinite where the solver's sweep does not reach the error, None where MuJoCo's does
+    not, or the solver was not swept, or nothing was solved."""
+    keys = [ratio_key(solver, part) for solver in SOLVERS for part in ("coarse", "fine")]
     if not curves:
-        return {"coarse_error": None, "coarse": None, "fine": None}
-    ours, mujoco = curves["RKMK87"], curves["MuJoCo RK4"]
-    coarse = mujoco[0]
+        return {"coarse_error": None} | dict.fromkeys(keys)
+    coarse = curves["MuJoCo RK4"][0]
+    t_mujoco = {"coarse": coarse["time"]["median"]}
+    t_mujoco["fine"] = time_to_reach(curves["MuJoCo RK4"], FINE_ERROR)
+    target = {"coarse": coarse["error"], "fine": FINE_ERROR}
 
-    def ratio(target, t_mujoco):
-        if t_mujoco is None:
+    def ratio(solver, part):
+        if t_mujoco[part] is None or solver not in curves:
             return None
-        t_ours = time_to_reach(ours, target)
-        return float("inf") if t_ours is None else t_ours / t_mujoco
+        t_ours = time_to_reach(curves[solver], target[part])
+        return float("inf") if t_ours is None else t_ours / t_mujoco[part]
 
-    return {
-        "coarse_error": coarse["error"],
-        "coarse": ratio(coarse["error"], coarse["time"]["median"]),
-        "fine": ratio(FINE_ERROR, time_to_reach(mujoco, FINE_ERROR)),
-    }
+    out = {ratio_key(s, part): ratio(s, part) for s in SOLVERS for part in ("coarse", "fine")}
+    return {"coarse_error": coarse["error"]} | out
 
 
 def member_start(member: Member, seed: int):

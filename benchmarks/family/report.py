@@ -6,14 +6,20 @@ import statistics
 
 from benchmarks._report import fmt, provenance_lines
 from benchmarks.family.gradient import DEFAULT, LIMITS
-from benchmarks.family.measure import FINE_ERROR, REFERENCE_AGREEMENT
+from benchmarks.family.measure import FINE_ERROR, REFERENCE_AGREEMENT, SOLVERS, ratio_key
 from benchmarks.speed.report import measured
 
-# The targets against MuJoCo: (key, what, limit).
+# The targets against MuJoCo: (key, what, limit); the solves' for each solver swept.
 TARGETS = (
     ("field", "one field evaluation / mj_forward", 5.0),
-    ("coarse", "solve to MuJoCo RK4 dt = 1e-2's error: RKMK87 / MuJoCo time", 1.0),
-    ("fine", f"solve to an error of {FINE_ERROR:.0e}: RKMK87 / MuJoCo RK4 time", 0.5),
+    *(
+        (ratio_key(solver, part), f"solve to {error}: {solver} / MuJoCo RK4 time", limit)
+        for solver in SOLVERS
+        for part, error, limit in (
+            ("coarse", "MuJoCo RK4 dt = 1e-2's error", 1.0),
+            ("fine", f"an error of {FINE_ERROR:.0e}", 0.5),
+        )
+    ),
 )
 
 
@@ -47,7 +53,7 @@ def has_mujoco(report):
 def value(member, key):
     """A member's figure for target `key` (None where its sweep did not reach the error,
     or it was not measured)."""
-    if key in ("field", "coarse", "fine"):
+    if key == "field" or key in member.get("ratios", {}):
         if "field" not in member:
             return None
         return member["field"]["ratio"] if key == "field" else member["ratios"][key]
@@ -122,10 +128,12 @@ def markdown(report):
 MUJOCO_COLUMNS_TEXT = [
     "Field: µs per evaluation, median (min–max), and its ratio to `mj_forward`'s. "
     "Solves, over the horizon (the reference's agreement in brackets): bundledyn's time "
-    "over MuJoCo's at MuJoCo's error with dt = 1e-2 (that error in brackets) and at "
-    f"{FINE_ERROR:.0e}, each interpolated log–log on its sweep; “not reached”: "
-    "bundledyn's sweep (rtol to 1e-12) does not reach the error; “–”: MuJoCo's "
-    "(dt to 1e-2/32) does not, or no horizon is predictable.",
+    f"with its default solver ({SOLVERS[0]}), then with "
+    f"{', '.join(SOLVERS[1:])}, over MuJoCo's at MuJoCo's error with dt = 1e-2 (that "
+    f"error in brackets) and at {FINE_ERROR:.0e}, each interpolated log–log on its sweep "
+    "(rtol 1e-2 to 1e-12, atol = rtol / 100); “not reached”: bundledyn's sweep does not "
+    "reach the error; “–”: MuJoCo's (dt to 1e-2/32) does not, or no horizon is "
+    "predictable.",
     "",
 ]
 
@@ -179,6 +187,11 @@ def columns(report):
             ("at dt = 1e-2's error", "--:", _coarse),
             (f"at {FINE_ERROR:.0e}", "--:", lambda m: _cell(value(m, "fine"))),
         ]
+        cols += [
+            (f"{solver} at {error}", "--:", _ratio_cell(ratio_key(solver, part)))
+            for solver in SOLVERS[1:]
+            for part, error in (("coarse", "dt = 1e-2's error"), ("fine", f"{FINE_ERROR:.0e}"))
+        ]
     if gradient:
         cols.append(("forward [ms]", "--:", _forward))
         cols += [
@@ -217,6 +230,10 @@ def failures(report):
 def _horizon(m):
     horizon = "none" if m["horizon"] is None else f"{m['horizon']:g}"
     return f"{horizon} ({m['reference_agreement']:.0e})"
+
+
+def _ratio_cell(key):
+    return lambda m: _cell(value(m, key))
 
 
 def _coarse(m):
