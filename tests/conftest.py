@@ -37,6 +37,18 @@ def optimized_compilation():
     jax.config.update("jax_disable_most_optimizations", previous)
 
 
+@pytest.fixture(scope="module", autouse=True)
+def free_compiled_programs():
+    """Drop JAX's compiled programs after each file. Every loaded XLA CPU executable holds
+    memory maps of its own, and a worker that keeps the programs of every file it ran
+    reaches the kernel's limit on maps (`vm.max_map_count`, 65530 by default; 58578 maps
+    measured in one worker near the end of the suite), where the next compile or cache
+    load segfaults. A later file that needs one again compiles it, or loads it from the
+    on-disk cache."""
+    yield
+    jax.clear_caches()
+
+
 @pytest.fixture
 def key():
     return jax.random.key(20261121)
