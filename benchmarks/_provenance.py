@@ -47,7 +47,8 @@ def machine():
         cpu = next(line.split(":", 1)[1].strip() for line in lines if line.startswith("model name"))
     except (OSError, StopIteration):
         pass
-    return f"{cpu}, {len(os.sched_getaffinity(0))} cores"
+    cores = len(os.sched_getaffinity(0))
+    return f"{cpu}, {cores} core{'' if cores == 1 else 's'}"
 
 
 def provenance():
