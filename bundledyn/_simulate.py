@@ -1,6 +1,7 @@
 """`simulate`: integrate a scene from an initial state with diffrax."""
 
 import dataclasses
+import functools
 
 import diffrax
 import equinox as eqx
@@ -116,7 +117,8 @@ def simulate(
       motion). The state and the system's parameters are checked at run time
       (`State.checked`, `AbstractSystem.checked`): a NaN, a pose off SE(3), a negative
       mass or a non-physical inertia raises, inside `jax.jit` and `jax.grad` too.
-    - `t1`, `t0`: end and start times.
+    - `t1`, `t0`: end and start times. These, `rtol`, `atol` and `dt0` are data of the
+      compiled solve: a new value, a Python number included, does not compile it again.
     - `solver`: a Lie-group solver (an `AbstractLieGroupSolver`: `RKMK87` default, `RKMK54`,
       `RKMK4`, `LieEuler`, `VariationalMidpoint`) or any diffrax solver, which then integrates the pose in its
       4×4 embedding: there its rotation drifts off SO(3) by the solver's error, so the saved
@@ -154,6 +156,70 @@ def simulate(
 
     A `Trajectory`.
     """
+    if stepsize_controller is None and _adaptive(solver):
+        # Here, not in the compiled solve, where Python numbers arrive traced.
+        check_tolerances(rtol, atol, state0.g.dtype)
+    return _solve(
+        scene,
+        state0,
+        _traced(t1),
+        t0=_traced(t0),
+        solver=solver,
+        rtol=_traced(rtol),
+        atol=_traced(atol),
+        dt0=_traced(dt0),
+        stepsize_controller=stepsize_controller,
+        saveat=saveat,
+        adjoint=adjoint,
+        event=event,
+        max_steps=max_steps,
+        progress=progress,
+        throw=throw,
+    )
+
+
+def _adaptive(solver) -> bool:
+    """Whether `solver` (None: the default) takes steps of the size its error calls for."""
+    return solver is None or isinstance(solver, diffrax.AbstractAdaptiveSolver)
+
+
+def _traced(x):
+    """A Python number as a weakly typed JAX scalar (it promotes as the number would), so
+    that a new value runs the compiled solve again: `equinox.filter_jit` holds Python
+    numbers static, and a horizon or tolerance given as one compiled a solve per value."""
+    if isinstance(x, int | float) and not isinstance(x, bool):
+        return _scalar(float(x), jax.config.jax_enable_x64)  # an integer time is a time
+    return x
+
+
+@functools.lru_cache(maxsize=256)
+def _scalar(x: float, x64: bool) -> jax.Array:
+    """`jnp.asarray(x)`, made once per value and precision (a JAX array is immutable); a
+    concrete array even when first asked for while a function is being traced."""
+    with jax.ensure_compile_time_eval():
+        return jnp.asarray(x)
+
+
+@eqx.filter_jit
+def _solve(
+    scene: Scene,
+    state0: State,
+    t1,
+    *,
+    t0: float | jax.Array = 0.0,
+    solver=None,
+    rtol: float = 1e-8,
+    atol: float = 1e-8,
+    dt0=None,
+    stepsize_controller: diffrax.AbstractStepSizeController | None = None,
+    saveat: diffrax.SaveAt | None = None,
+    adjoint: diffrax.AbstractAdjoint | None = None,
+    event: diffrax.Event | None = None,
+    max_steps: int | None = 16384,
+    progress: bool = False,
+    throw: bool = True,
+) -> Trajectory:
+    """`simulate`'s solve, compiled once for every horizon, tolerance and first step."""
     solver = DEFAULT_SOLVER() if solver is None else solver
     saveat = diffrax.SaveAt(t0=True, t1=True) if saveat is None else saveat
     if isinstance(solver, AbstractRKMK) and not _interpolates(saveat, event):
@@ -217,6 +283,3 @@ def simulate(
     states = jax.vmap(term.decode)(sol.ts, (g, x))
     U = jax.vmap(lambda t, y: term.unpack(t, y)[2])(sol.ts, (g, x))
     return Trajectory(sol.ts, g, states.q, states.xi, states.qdot, U, stats, sol.result, scene)
-
-
-simulate = eqx.filter_jit(simulate)

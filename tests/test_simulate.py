@@ -138,6 +138,36 @@ def test_a_given_adaptive_controller_starts_like_the_default():
         bd.simulate(scene, state, 5.0, stepsize_controller=diffrax.ConstantStepSize())
 
 
+def test_new_horizons_tolerances_and_first_steps_reuse_the_compiled_solve():
+    """Times, tolerances and a first step given as Python numbers are data of the compiled
+    solve, not keys of its cache (`equinox.filter_jit` holds Python numbers static: each new
+    value compiled the solve again), and each call uses its own values."""
+    from bundledyn._simulate import _solve, _traced
+
+    scene, state = DZHANIBEKOV, DZHANIBEKOV_STATE
+    bd.simulate(scene, state, 1.0)
+    bd.simulate(scene, state, 1.0, dt0=0.1)
+    compiled = _solve._cached._cache_size()
+    cases = [(0.0, 2.0, 1e-6, 1e-9, None), (0.5, 3, 1e-9, 1e-7, None),
+             (0.0, 1.5, 1e-8, 1e-8, 0.05), (1, 2.5, 1e-7, 1e-8, 0.2)]  # fmt: skip
+    trajectories = [
+        bd.simulate(scene, state, t1, t0=t0, rtol=rtol, atol=atol, dt0=dt0)
+        for t0, t1, rtol, atol, dt0 in cases
+    ]
+    assert _solve._cached._cache_size() == compiled
+    # A number first met inside a traced function is not kept as that trace's tracer.
+    inside = jax.jit(lambda g: bd.simulate(scene, bd.State(g, xi=state.xi), 1.25).g[-1])
+    np.testing.assert_array_equal(inside(state.g), bd.simulate(scene, state, 1.25).g[-1])
+    assert not isinstance(_traced(1.25), jax.core.Tracer)
+    for (t0, t1, rtol, atol, dt0), traj in zip(cases, trajectories, strict=True):
+        np.testing.assert_array_equal(traj.ts, [t0, t1])
+        f64 = lambda x: None if x is None else jnp.asarray(x, jnp.float64)  # noqa: E731
+        given_as_arrays = bd.simulate(
+            scene, state, f64(t1), t0=f64(t0), rtol=f64(rtol), atol=f64(atol), dt0=f64(dt0)
+        )
+        np.testing.assert_array_equal(traj.g, given_as_arrays.g)
+
+
 FREE_CHAIN_STATE = bd.State(
     lie.se3_exp(jnp.array([0.1, -0.3, 0.2, 0.5, 0.0, -0.2])),
     0.3 * jnp.cos(jnp.arange(chain(5).shape_dim)),
