@@ -2,6 +2,7 @@
 
 import dataclasses
 import functools
+import inspect
 
 import diffrax
 import equinox as eqx
@@ -90,6 +91,49 @@ def default_adjoint(solver) -> diffrax.AbstractAdjoint:
     return diffrax.RecursiveCheckpointAdjoint()
 
 
+# `simulate`'s arguments that are numbers: data of the compiled solve, not keys of its cache.
+_NUMBERS = ("t1", "t0", "rtol", "atol", "dt0")
+
+
+def _numbers_as_data(solve, signature: inspect.Signature):
+    """`solve` (compiled by `equinox.filter_jit`, which holds Python numbers static: each new
+    horizon or tolerance compiled the whole solve again) called with its `_NUMBERS` as
+    weakly typed JAX scalars, after checking the tolerances on the caller's values."""
+
+    def simulate(*args, **kwargs):
+        bound = signature.bind(*args, **kwargs)
+        bound.apply_defaults()
+        given = bound.arguments
+        if given["stepsize_controller"] is None and _adaptive(given["solver"]):
+            # Here, not in the compiled solve, where the numbers arrive traced.
+            check_tolerances(given["rtol"], given["atol"], given["state0"].g.dtype)
+        given.update({name: _traced(given[name]) for name in _NUMBERS})
+        return solve(*bound.args, **bound.kwargs)
+
+    return simulate
+
+
+def _adaptive(solver) -> bool:
+    """Whether `solver` (None: the default) takes steps of the size its error calls for."""
+    return solver is None or isinstance(solver, diffrax.AbstractAdaptiveSolver)
+
+
+def _traced(x):
+    """A Python number as a weakly typed JAX scalar (it promotes as the number would)."""
+    if isinstance(x, int | float) and not isinstance(x, bool):
+        x64 = bool(jax.config.read("jax_enable_x64"))
+        return _scalar(float(x), x64)  # an integer time is a time
+    return x
+
+
+@functools.lru_cache(maxsize=256)
+def _scalar(x: float, x64: bool) -> jax.Array:
+    """`jnp.asarray(x)`, made once per value and precision (a JAX array is immutable); a
+    concrete array even when first asked for while a function is being traced."""
+    with jax.ensure_compile_time_eval():
+        return jnp.asarray(x)
+
+
 def simulate(
     scene: Scene,
     state0: State,
@@ -156,70 +200,6 @@ def simulate(
 
     A `Trajectory`.
     """
-    if stepsize_controller is None and _adaptive(solver):
-        # Here, not in the compiled solve, where Python numbers arrive traced.
-        check_tolerances(rtol, atol, state0.g.dtype)
-    return _solve(
-        scene,
-        state0,
-        _traced(t1),
-        t0=_traced(t0),
-        solver=solver,
-        rtol=_traced(rtol),
-        atol=_traced(atol),
-        dt0=_traced(dt0),
-        stepsize_controller=stepsize_controller,
-        saveat=saveat,
-        adjoint=adjoint,
-        event=event,
-        max_steps=max_steps,
-        progress=progress,
-        throw=throw,
-    )
-
-
-def _adaptive(solver) -> bool:
-    """Whether `solver` (None: the default) takes steps of the size its error calls for."""
-    return solver is None or isinstance(solver, diffrax.AbstractAdaptiveSolver)
-
-
-def _traced(x):
-    """A Python number as a weakly typed JAX scalar (it promotes as the number would), so
-    that a new value runs the compiled solve again: `equinox.filter_jit` holds Python
-    numbers static, and a horizon or tolerance given as one compiled a solve per value."""
-    if isinstance(x, int | float) and not isinstance(x, bool):
-        return _scalar(float(x), jax.config.jax_enable_x64)  # an integer time is a time
-    return x
-
-
-@functools.lru_cache(maxsize=256)
-def _scalar(x: float, x64: bool) -> jax.Array:
-    """`jnp.asarray(x)`, made once per value and precision (a JAX array is immutable); a
-    concrete array even when first asked for while a function is being traced."""
-    with jax.ensure_compile_time_eval():
-        return jnp.asarray(x)
-
-
-@eqx.filter_jit
-def _solve(
-    scene: Scene,
-    state0: State,
-    t1,
-    *,
-    t0: float | jax.Array = 0.0,
-    solver=None,
-    rtol: float = 1e-8,
-    atol: float = 1e-8,
-    dt0=None,
-    stepsize_controller: diffrax.AbstractStepSizeController | None = None,
-    saveat: diffrax.SaveAt | None = None,
-    adjoint: diffrax.AbstractAdjoint | None = None,
-    event: diffrax.Event | None = None,
-    max_steps: int | None = 16384,
-    progress: bool = False,
-    throw: bool = True,
-) -> Trajectory:
-    """`simulate`'s solve, compiled once for every horizon, tolerance and first step."""
     solver = DEFAULT_SOLVER() if solver is None else solver
     saveat = diffrax.SaveAt(t0=True, t1=True) if saveat is None else saveat
     if isinstance(solver, AbstractRKMK) and not _interpolates(saveat, event):
@@ -283,3 +263,7 @@ def _solve(
     states = jax.vmap(term.decode)(sol.ts, (g, x))
     U = jax.vmap(lambda t, y: term.unpack(t, y)[2])(sol.ts, (g, x))
     return Trajectory(sol.ts, g, states.q, states.xi, states.qdot, U, stats, sol.result, scene)
+
+
+_solve = eqx.filter_jit(simulate)
+simulate = functools.wraps(simulate)(_numbers_as_data(_solve, inspect.signature(simulate)))
