@@ -82,18 +82,38 @@ def _reverse_field(scene, t, y):
 
 
 @functools.cache
-def _pullback(name, field, both):
-    """`field`'s VJP on system `name`, compiled once for every state of the system: with
-    respect to the state and the scene's numbers, or to the state alone (the scene held
-    constant)."""
+def _pullback(name, both):
+    """The hand-derived field's VJP on system `name`, compiled once for every state of the
+    system: with respect to the state and the scene's numbers, or to the state alone (the
+    scene held constant)."""
     static = eqx.partition(_scene(name), eqx.is_inexact_array)[1]
 
     def run(params, y, cotangent):
         if both:
-            vjp = jax.vjp(lambda p, y: field(eqx.combine(p, static), 0.3, y), params, y)[1]
+            vjp = jax.vjp(lambda p, y: _reverse_field(eqx.combine(p, static), 0.3, y), params, y)[1]
         else:
-            vjp = jax.vjp(lambda y: field(eqx.combine(params, static), 0.3, y), y)[1]
+            vjp = jax.vjp(lambda y: _reverse_field(eqx.combine(params, static), 0.3, y), y)[1]
         return vjp(cotangent)
+
+    return jax.jit(run)
+
+
+@functools.cache
+def _reference_pullback(name):
+    """The reference field's VJP with respect to the scene's numbers and the state, from
+    its Jacobian in forward mode (which shares no transposition with the hand-derived pass,
+    and compiles in about half the time of its reverse mode)."""
+    static = eqx.partition(_scene(name), eqx.is_inexact_array)[1]
+
+    def run(params, y, cotangent):
+        field = lambda p, y: _reference_field(eqx.combine(p, static), 0.3, y)
+        jacobians = jax.jacfwd(field, argnums=(0, 1))(params, y)
+
+        def contract(c, jacobian):  # Σ_o c_o ∂out_o/∂input, leaf by leaf
+            return jax.tree.map(lambda j: jnp.tensordot(c, j, axes=c.ndim), jacobian)
+
+        parts = [contract(c, j) for c, j in zip(cotangent, jacobians, strict=True)]
+        return jax.tree.map(lambda a, b: a + b, *parts)
 
     return jax.jit(run)
 
@@ -108,15 +128,12 @@ def _pullbacks(name, kind):
     cotangent = (jax.random.normal(k[0], (6,)), jax.random.normal(k[1], (2 * d + 6,)))
     params = eqx.filter(scene, eqx.is_inexact_array)
     vjps = {
-        (field.__name__, both): _pullback(name, field, both)(params, y, cotangent)
-        for field, both in (
-            (_reference_field, True),
-            (_reverse_field, True),
-            (_reverse_field, False),
-        )
+        ("_reverse_field", both): _pullback(name, both)(params, y, cotangent)
+        for both in (True, False)
     }
+    vjps["_reference_field", True] = _reference_pullback(name)(params, y, cotangent)
     # The state's cotangent does not depend on what else is perturbed: the reference's
-    # serves both (its VJP is the dearest to compile).
+    # serves both.
     vjps["_reference_field", False] = vjps["_reference_field", True][1:]
     return vjps, (params, y)
 
