@@ -191,7 +191,9 @@ def simulate(
       then evaluates the field 13 times per step instead of 14.
     - `adjoint`: how reverse mode differentiates the solve: a diffrax adjoint. Default
       `StoredStepsAdjoint` for the Lie-group solvers (one reverse sweep over the accepted
-      steps), `diffrax.RecursiveCheckpointAdjoint` for any other solver.
+      steps), `diffrax.RecursiveCheckpointAdjoint` for any other solver. Derivatives with
+      respect to `t0`, `t1`, `saveat`'s times or the tolerances need
+      `diffrax.RecursiveCheckpointAdjoint()` (the default refuses them, saying so).
     - `event`: an optional `diffrax.Event` to stop at.
     - `max_steps`: step budget; running out raises (or, with `throw=False`, sets `result`).
     - `progress`: show diffrax's text progress meter.

@@ -160,6 +160,22 @@ def test_with_the_scene_held_constant_gradients_equal_checkpointed_ones():
     )
 
 
+def test_a_derivative_in_the_horizon_is_refused_naming_the_adjoint_that_gives_it():
+    scene, state = CASES["rigid"]()
+
+    def final(t1, adjoint):
+        traj = bd.simulate(scene, state, t1, adjoint=adjoint, rtol=1e-10, atol=1e-10)
+        return jnp.sum(traj.g[-1, :3, 3]) + jnp.sum(traj.xi[-1])
+
+    with pytest.raises(
+        RuntimeError, match=r"`t1`.*adjoint=diffrax\.RecursiveCheckpointAdjoint\(\)"
+    ):
+        jax.grad(final)(T1, STORED)
+    h = 1e-5
+    differences = (final(T1 + h, STORED) - final(T1 - h, STORED)) / (2 * h)
+    np.testing.assert_allclose(float(jax.grad(final)(T1, CHECKPOINTED)), differences, rtol=1e-7)
+
+
 def test_an_unknown_field_reverse_pass_is_refused():
     with pytest.raises(ValueError, match="'autodiff' or 'hand-derived'"):
         bd.StoredStepsAdjoint(field_reverse="manual")

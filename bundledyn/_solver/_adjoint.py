@@ -48,6 +48,14 @@ def _add(a, b):
     return jtu.tree_map(jnp.add, a, b)
 
 
+_NOT_DIFFERENTIATED = (
+    "`StoredStepsAdjoint` differentiates a solve with respect to `y0`, `args` and the "
+    "terms' arrays only, and here one of `t0`, `t1`, `dt0`, `SaveAt(ts=...)` or a step-size "
+    "controller's tolerances is differentiated too. For derivatives with respect to those, "
+    "pass `adjoint=diffrax.RecursiveCheckpointAdjoint()`."
+)
+
+
 class StoredStepsAdjoint(diffrax.AbstractAdjoint):
     r"""Backpropagate through `diffrax.diffeqsolve` by storing the state at every accepted
     step and sweeping once backwards over those steps with the VJP of the solver's step.
@@ -66,8 +74,10 @@ class StoredStepsAdjoint(diffrax.AbstractAdjoint):
     `max_steps=None`, stochastic terms), the solve is differentiated by `fallback`.
 
     Derivatives are taken with respect to `y0`, `args` and the terms' arrays (a scene's
-    parameters); not with respect to `t0`, `t1`, `SaveAt(ts=...)` or arrays inside an
-    event's condition. Reverse mode only (use `diffrax.ForwardMode` for forward mode).
+    parameters); not with respect to `t0`, `t1`, `SaveAt(ts=...)`, tolerances or arrays
+    inside an event's condition (differentiating the first four raises an error naming
+    `diffrax.RecursiveCheckpointAdjoint`, which differentiates them). Reverse mode only
+    (use `diffrax.ForwardMode` for forward mode).
 
     **Arguments:**
 
@@ -126,6 +136,7 @@ class StoredStepsAdjoint(diffrax.AbstractAdjoint):
             (object(), lax.stop_gradient(init_state.controller_state)),
             is_leaf=lambda x: x is None,
         )
+        kwargs = eqxi.nondifferentiable(kwargs, msg=_NOT_DIFFERENTIATED)
         final_state, aux_stats = _stored_steps_loop(
             (init_state.y, args, terms),
             loop=self._loop,
