@@ -3,8 +3,7 @@ import os
 
 # Tracing and compiling allocate millions of short-lived objects among a large heap of
 # long-lived ones (traced functions, compiled programs), and Python's default collector
-# (a young collection per 700 allocations) spends a tenth of the suite's time walking
-# them. Measured on test_geometry.py and test_invariance_dynamics.py, one core, cold
+# (a young collection per 700 allocations) walks them again and again. Measured on test_geometry.py and test_invariance_dynamics.py, one core, cold
 # compilation cache, in alternation: 107-115 s with the default thresholds, 95-102 s with
 # these; peak memory the same (1.63 GB).
 gc.set_threshold(100_000, 50, 1000)

@@ -102,7 +102,8 @@ def _pullback(name, both):
 def _reference_pullback(name):
     """The reference field's VJP with respect to the scene's numbers and the state, from
     its Jacobian in forward mode (which shares no transposition with the hand-derived pass,
-    and compiles in about half the time of its reverse mode)."""
+    and compiles in about 60 % of the time of its reverse mode: 4.4 s against 7.2 s on
+    chain5)."""
     static = eqx.partition(_scene(name), eqx.is_inexact_array)[1]
 
     def run(params, y, cotangent):
