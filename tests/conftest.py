@@ -3,9 +3,10 @@ import os
 
 # Tracing and compiling allocate millions of short-lived objects among a large heap of
 # long-lived ones (traced functions, compiled programs), and Python's default collector
-# (a young collection per 700 allocations) walks them again and again. Measured on test_geometry.py and test_invariance_dynamics.py, one core, cold
-# compilation cache, in alternation: 107-115 s with the default thresholds, 95-102 s with
-# these; peak memory the same (1.63 GB).
+# (a young collection per 700 allocations) walks them again and again. Measured on
+# test_geometry.py and test_invariance_dynamics.py, one core, cold compilation cache, in
+# alternation: 107-115 s with the default thresholds, 95-102 s with these; peak memory the
+# same (1.63 GB).
 gc.set_threshold(100_000, 50, 1000)
 
 # One on-disk compilation cache for the run: both xdist workers and the notebooks' kernels
