@@ -18,8 +18,10 @@ direction gets none. $\hat\sigma^2 = \chi^2/(R - \mathrm{rank})$ scales them, so
 noise levels do not make the intervals lie.
 """
 
+import functools
 from typing import NamedTuple
 
+import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -72,6 +74,7 @@ def null_space(C):
     return Q[:, C.shape[0] :]
 
 
+@functools.partial(jax.jit, static_argnames="num_parameters")
 def theta_information(J, C, num_parameters: int):
     r"""$F_\theta$: the information on the first `num_parameters` entries of $z$ once the
     others (window states) are eliminated under the constraints $C\delta z = 0$."""
@@ -100,6 +103,13 @@ def physical_quantities(parameters: Parameters, theta):
     return jnp.concatenate([per_body, *constants])
 
 
+@eqx.filter_jit
+def _quantities_and_jacobian(parameters: Parameters, theta):
+    r"""`physical_quantities` at $\theta$ and their Jacobian in $\theta$."""
+    quantities = functools.partial(physical_quantities, parameters)
+    return quantities(theta), jax.jacfwd(quantities)(theta)
+
+
 def _quantity_names(parameters: Parameters):
     names = parameters.body_names
     labels = [f"{names[b]}.{q}" for b in parameters.bodies for q in _QUANTITIES]
@@ -109,14 +119,11 @@ def _quantity_names(parameters: Parameters):
     return labels
 
 
-def _describe(direction, parameters: Parameters, theta, names):
+def _describe(direction, parameters: Parameters, value, gradients, names):
     r"""A blind direction of $\theta$ as the physical quantities that move most along it
     (relative to their size: a centre by the body's radius of gyration, an inertia entry
-    by the trace)."""
-    quantities = lambda t: physical_quantities(parameters, t)
-    value, change = (
-        np.asarray(x) for x in jax.jvp(quantities, (theta,), (jnp.asarray(direction),))
-    )
+    by the trace), from the quantities' `value` and `gradients` in $\theta$."""
+    change = gradients @ direction
     size = np.abs(value).copy()
     for b in range(len(parameters.bodies)):
         block = value[10 * b : 10 * b + 10]
@@ -130,10 +137,10 @@ def _describe(direction, parameters: Parameters, theta, names):
     return "the combination " + " ".join(terms)
 
 
-def _blind_directions(blind, scales, parameters: Parameters, theta, names):
-    """The blind subspace (orthonormal columns, scaled coordinates) in words: the named
+def _blind_directions(blind, scales, parameters: Parameters, theta, quantities, names):
+    r"""The blind subspace (orthonormal columns, scaled coordinates) in words: the named
     directions it contains (`named_directions`), then what remains, by its largest
-    physical components."""
+    physical components (`quantities`: their values and Jacobian at $\theta$)."""
     found, inside = [], []
     for label, u in named_directions(parameters, theta).items():
         u = u / scales
@@ -147,7 +154,8 @@ def _blind_directions(blind, scales, parameters: Parameters, theta, names):
         rest = blind - U @ np.linalg.lstsq(U, blind, rcond=None)[0]
     left, singular, _ = np.linalg.svd(rest, full_matrices=False)
     remainder = left[:, singular > _INSIDE] if rest.size else rest
-    found += [_describe(scales * v, parameters, theta, names) for v in remainder.T]
+    value, gradients = quantities
+    found += [_describe(scales * v, parameters, value, gradients, names) for v in remainder.T]
     return tuple(found)
 
 
@@ -177,8 +185,7 @@ def analyse(parameters: Parameters, theta, information, chi2: float, dof: int) -
     covariance = S[:, None] * ((vectors * inverse) @ vectors.T) * sigma2 * S[None, :]
     names = _quantity_names(parameters)
     theta = jnp.asarray(theta)
-    values = np.asarray(physical_quantities(parameters, theta))
-    gradients = np.asarray(jax.jacfwd(lambda t: physical_quantities(parameters, t))(theta))
+    values, gradients = (np.asarray(x) for x in _quantities_and_jacobian(parameters, theta))
     scaled = gradients * S[None, :]
     blind_vectors = vectors[:, blind]
     share = np.linalg.norm(scaled @ blind_vectors, axis=1) / np.maximum(
@@ -189,7 +196,9 @@ def analyse(parameters: Parameters, theta, information, chi2: float, dof: int) -
         Estimate(name, float(v), float(s) if ok else float("nan"), bool(ok))
         for name, v, s, ok in zip(names, values, stds, share <= _ORTHOGONAL, strict=True)
     )
-    undetermined = _blind_directions(blind_vectors, S, parameters, theta, names)
+    undetermined = _blind_directions(
+        blind_vectors, S, parameters, theta, (values, gradients), names
+    )
     kept = eigenvalues[determined]
     condition = float(np.sqrt(kept[0] / kept[-1])) if kept.size else float("inf")
     return Identifiability(

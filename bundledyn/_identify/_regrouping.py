@@ -93,6 +93,13 @@ def _padded(coordinates):
     return jnp.concatenate([coordinates, jnp.zeros(10 - coordinates.shape[0], coordinates.dtype)])
 
 
+@jax.jit
+def _log_cholesky_jacobians(coordinates):
+    r"""$\partial P/\partial\theta$ of each body, `(k, 4, 4, n)` for `coordinates` `(k, n)`:
+    finite however degenerate the body."""
+    return jax.vmap(jax.jacfwd(lambda c: pseudo_inertia_from_log_cholesky(_padded(c))))(coordinates)
+
+
 def named_directions(parameters: Parameters, theta) -> dict:
     r"""Directions of $\theta$ with a physical name, each a `(size,)` array: the joints'
     regroupings (module docstring) between free bodies, the overall mass scale and each
@@ -102,13 +109,8 @@ def named_directions(parameters: Parameters, theta) -> dict:
     n = 7 if system.fixed_centres else 10
     P = parameters.pseudo_inertias(theta)
 
-    coordinates = np.asarray(theta)[: len(free) * n].reshape(len(free), n)
-    forward = [
-        np.asarray(
-            jax.jacfwd(lambda c: pseudo_inertia_from_log_cholesky(_padded(c)))(jnp.asarray(c))
-        )
-        for c in coordinates
-    ]  # ∂P/∂θ of each body, (4, 4, n): finite however degenerate the body
+    coordinates = jnp.asarray(theta)[: len(free) * n].reshape(len(free), n)
+    forward = np.asarray(_log_cholesky_jacobians(coordinates))
 
     def direction(delta):
         """θ-direction of the pseudo-inertia change `delta`, `(k, 4, 4)` over free bodies."""

@@ -23,6 +23,7 @@ mass, is the same matrix with $c = 0$: $P = \operatorname{diag}(E, m)$, and its 
 are $\theta$ with $t = 0$.
 """
 
+import jax
 import jax.numpy as jnp
 from jaxtyping import Array, Float
 
@@ -34,12 +35,16 @@ __all__ = [
 ]
 
 _UPPER = ((0, 1), (1, 2), (0, 2))  # the order of s12, s23, s13 in θ
+# Each function below is compiled whole (`jax.jit`): called outside a traced function, as
+# model construction and identification reports call them, it runs as one program instead
+# of one per operation (each compiled on first use).
 
 
 def _eye3(like):
     return jnp.broadcast_to(jnp.eye(3, dtype=like.dtype), (*like.shape[:-2], 3, 3))
 
 
+@jax.jit
 def pseudo_inertia(mass, com, inertia) -> Float[Array, "... 4 4"]:
     r"""The pseudo-inertia $P$ of bodies of mass $m$, centre of mass $c$ and inertia $J_c$.
 
@@ -64,6 +69,7 @@ def pseudo_inertia(mass, com, inertia) -> Float[Array, "... 4 4"]:
     return jnp.concatenate([top, bottom], axis=-2)
 
 
+@jax.jit
 def inertial_from_pseudo_inertia(P: Float[Array, "... 4 4"]):
     r"""Mass, centre of mass and inertia about it of pseudo-inertias $P$ (the inverse of `pseudo_inertia`).
 
@@ -84,6 +90,7 @@ def inertial_from_pseudo_inertia(P: Float[Array, "... 4 4"]):
     return m, c, trace * _eye3(sigma_c) - sigma_c
 
 
+@jax.jit
 def pseudo_inertia_from_log_cholesky(theta: Float[Array, "... 10"]) -> Float[Array, "... 4 4"]:
     r"""The pseudo-inertia $P = UU^T$ of log-Cholesky coordinates $\theta$ (module docstring).
 
@@ -117,6 +124,7 @@ def _upper_cholesky(S):
     return jnp.flip(jnp.flip(L, -1), -2)
 
 
+@jax.jit
 def log_cholesky_from_pseudo_inertia(P: Float[Array, "... 4 4"]) -> Float[Array, "... 10"]:
     r"""The log-Cholesky coordinates $\theta$ of positive definite pseudo-inertias $P$.
 
