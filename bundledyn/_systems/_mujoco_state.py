@@ -1,9 +1,12 @@
 r"""MuJoCo's `qpos`, `qvel` to and from bundledyn's `State`, for every joint kind.
 
 Pure JAX (no `mujoco` import): `jax.jit`, `jax.grad` and `jax.vmap` (over a batch of
-states) work through both converters.
+states) work through both converters. Each is compiled whole (`equinox.filter_jit`), so
+that a call outside `jit` (converting recorded states one by one) runs one program, not
+one per operation.
 """
 
+import equinox as eqx
 import jax.numpy as jnp
 import numpy as np
 
@@ -64,6 +67,7 @@ def _screw_offsets(qpos0, lay, free_root, dtype):
     return qpos0[lay["screw_pos"]]
 
 
+@eqx.filter_jit
 def state_from_mujoco(
     system: AbstractMultibody, qpos, qvel, *, qpos0=None, free_root=True, root_pose=None
 ) -> State:
@@ -129,6 +133,7 @@ def state_from_mujoco(
     return State(g, q, xi, qdot)
 
 
+@eqx.filter_jit
 def state_to_mujoco(system: AbstractMultibody, state: State, *, qpos0=None, free_root=True):
     r"""MuJoCo's `qpos`, `qvel` from bundledyn's `State` $(g, q, \xi, \dot q)$.
 
