@@ -200,13 +200,12 @@ class Multibody(AbstractMultibody):
         p = a - matmul(R, a[..., None])[..., 0]
         F_ball = pose(R, p)
         Jr = lie.so3_dexp(phi)
-        S_ball = jnp.concatenate([Jr, matmul(lie.hat(a), Jr)], axis=-2)
         # One `take` places the factors in node order; fixed nodes take the identity.
         order = np.full(len(kinds), len(screw_nodes) + len(ball_nodes))
         order[screw_nodes] = np.arange(len(screw_nodes))
         order[ball_nodes] = len(screw_nodes) + np.arange(len(ball_nodes))
         F = take(jnp.concatenate([F_screw, F_ball, jnp.eye(4, dtype=q.dtype)[None]]), order)
-        return F, screw_nodes, ball_nodes, S_ball
+        return F, screw_nodes, ball_nodes, Jr
 
     def _node_poses(self, q):
         r"""Poses of all nodes in the base frame, by pointer jumping over the tree.
@@ -215,7 +214,7 @@ class Multibody(AbstractMultibody):
         compiled graph small for deep chains.
         """
         t = self.tables
-        F, screw_nodes, ball_nodes, S_ball = self._node_transforms(q)
+        F, screw_nodes, ball_nodes, Jr = self._node_transforms(q)
         n_nodes = len(t.kinds)
         first = np.array(t.first)
         node_body = np.array(t.node_body)
@@ -227,15 +226,40 @@ class Multibody(AbstractMultibody):
         while np.any(anc[:n_nodes] != sentinel):
             T = matmul(take(jnp.concatenate([T, eye]), anc[:n_nodes]), T)
             anc = anc[anc]
-        return T, screw_nodes, ball_nodes, S_ball
+        return T, screw_nodes, ball_nodes, Jr
 
     def body_poses(self, q):
         return take(self._node_poses(q)[0], self.tables.body_last)
 
-    def _shape_columns(self, T, screw_nodes, ball_nodes, S_ball):
+    def _ball_twists(self, T, ball_nodes, axes):
+        r"""Rotations about each ball joint's anchor, as twists in the base frame.
+
+        A ball joint's column for the body-frame axis $\omega$ is $S\omega = (\omega, a\times\omega)$;
+        in the base frame $\operatorname{Ad}_T S\omega = (R\omega, c\times R\omega)$ with
+        $c = p + Ra$ the anchor's position there, formed without the 6×6 $\operatorname{Ad}_T$.
+
+        **Arguments:**
+
+        - `T`: all node poses, shape `(nodes, 4, 4)`.
+        - `ball_nodes`: the ball joints' node indices, `k` of them.
+        - `axes`: body-frame rotation axes as columns, shape `(k, ..., 3, m)`.
+
+        **Returns:**
+
+        Shape `(k, ..., 6, m)`.
+        """
+        T_ball = take(T, ball_nodes)
+        R = T_ball[:, :3, :3]
+        c = T_ball[:, :3, 3] + matmul(R, self.ball_anchors[..., None])[..., 0]
+        lead = (slice(None),) + (None,) * (axes.ndim - 3)
+        w = matmul(R[lead], axes)
+        v = jnp.cross(c[lead][..., None], w, axis=-2)
+        return jnp.concatenate([w, v], axis=-2)
+
+    def _shape_columns(self, T, screw_nodes, ball_nodes, Jr):
         """$Z$: every joint column as a twist in the base frame, shape (6, d)."""
         Z_screw = einsum("kij,kj->ik", lie.Ad(take(T, screw_nodes)), unit_screws(self.screw_axes))
-        Z_ball = einsum("kij,kjl->ikl", lie.Ad(take(T, ball_nodes)), S_ball).reshape(6, -1)
+        Z_ball = jnp.moveaxis(self._ball_twists(T, ball_nodes, Jr), 0, 1).reshape(6, -1)
         q_start = np.array(self.tables.q_start)
         columns = np.concatenate(
             [q_start[screw_nodes], (q_start[ball_nodes][:, None] + np.arange(3)).reshape(-1)]
@@ -248,8 +272,7 @@ class Multibody(AbstractMultibody):
 
         Moving coordinate $j$ alone moves every body below its joint with the twist $Z_j$.
         """
-        T, screw_nodes, ball_nodes, S_ball = self._node_poses(q)
-        return self._shape_columns(T, screw_nodes, ball_nodes, S_ball)
+        return self._shape_columns(*self._node_poses(q))
 
     def velocity_jacobians(self, q):
         *_, r, Jhat = self._jacobian_parts(q)
@@ -260,8 +283,8 @@ class Multibody(AbstractMultibody):
 
     def _jacobian_parts(self, q):
         r"""Node poses, ball nodes, joint columns $Z$, body poses $r_a$ and $\hat J_a$."""
-        T, screw_nodes, ball_nodes, S_ball = self._node_poses(q)
-        Z = self._shape_columns(T, screw_nodes, ball_nodes, S_ball)
+        T, screw_nodes, ball_nodes, Jr = self._node_poses(q)
+        Z = self._shape_columns(T, screw_nodes, ball_nodes, Jr)
         mask = jnp.asarray(column_tables(self.tables)[0], q.dtype)
         eye = jnp.broadcast_to(jnp.eye(6, dtype=q.dtype), (self.num_bodies, 6, 6))
         Jhat = jnp.concatenate([eye, Z[None] * mask[:, None, :]], axis=-1)
@@ -323,9 +346,7 @@ class Multibody(AbstractMultibody):
         $S = [J_r; \hat a J_r]$ with $J_r = \operatorname{dexp}(\varphi)$ (`so3_dexp_derivative`)."""
         cols = np.array(self.tables.q_start)[ball_nodes][:, None] + np.arange(3)
         dJr = so3_dexp_derivative(take(q, cols))  # (k, l, 3, i)
-        arm = einsum("kyz,klzi->klyi", lie.hat(self.ball_anchors), dJr)
-        dS = jnp.concatenate([dJr, arm], axis=-2)  # (k, l, 6, i)
-        values = jnp.einsum("kxy,klyi->klix", lie.Ad(take(T, ball_nodes)), dS)
+        values = jnp.swapaxes(self._ball_twists(T, ball_nodes, dJr), -1, -2)
         return BallColumnDerivative(values, tuple(map(tuple, cols.tolist())), self.shape_dim)
 
     def with_pseudo_inertias(self, P) -> "Multibody":
