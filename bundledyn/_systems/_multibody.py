@@ -339,7 +339,8 @@ class Multibody(AbstractMultibody):
         G = composite_metric(inertias, Z, path, at_or_above, strictly_above)
         G = G + self._rotor_inertia(q.dtype)  # constant: no derivative terms
         ball_dZ = self._ball_column_derivative(q, T, ball_nodes) if len(ball_nodes) else None
-        return TreeMetricJet(G, Z, inertias, ball_dZ, path, at_or_above, strictly_above)
+        joints_at_or_above = jnp.asarray(column_tables(self.tables)[1].T, q.dtype)
+        return TreeMetricJet(G, Z, inertias, ball_dZ, path, joints_at_or_above, strictly_above)
 
     def _ball_column_derivative(self, q, T, ball_nodes) -> BallColumnDerivative:
         r"""$\operatorname{Ad}_{T} \partial S_i/\partial\varphi_l$ of each ball joint's own columns,

@@ -84,7 +84,7 @@ class TreeMetricJet(AbstractMetricJet):
     inertias: Float[Array, "n 6 6"]
     ball_dZ: BallColumnDerivative | None
     path: Float[Array, "n d"]
-    at_or_above: Float[Array, "d d"]
+    joints_at_or_above: Float[Array, "d d"]
     strictly_above: Float[Array, "d d"]
 
     def _twists(self, Z, X):
@@ -104,7 +104,10 @@ class TreeMetricJet(AbstractMetricJet):
         # (∂_u G)x = Σ_a Ĵ_aᵀ(ad*_{W_a} p_a + M̃_a δV_a) + [0; ∂_u Z_l · Π_l], where
         # δV_a = (∂_u Ĵ_a)x - [W_a, V_a] is the change of the body twist.
         Zu = self.Z * u
-        dZ = lie.bracket(matmul(Zu, self.at_or_above).T, self.Z.T).T
+        # Row j of `joints_at_or_above` (`at_or_above` transposed) marks the joints at or
+        # above j. As its own constant XLA lays it out for this product alone; sharing
+        # `composite_metric`'s table cost a copy into the other layout on every call.
+        dZ = lie.bracket(matmul(self.joints_at_or_above, Zu.T), self.Z.T).T
         if self.ball_dZ is not None:
             dZ = dZ + self.ball_dZ.along(u)
         W = einsum("il,al->ai", Zu, self.path)
