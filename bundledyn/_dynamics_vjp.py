@@ -3,8 +3,8 @@ r"""The reverse pass of (2.6)–(2.7): the field's VJP in closed form, through t
 Autodiff transposes the field's forward pass kernel by kernel, and the reverse of a tree's
 many small fused products is several times the field (every broadcast's transpose is a
 reduction that ends a fusion). The VJP written out here needs no transpose of the field:
-only the metric jet's forward contractions (`forms`, `along_applied`) and one forward-mode
-derivative of `forms`.
+only the metric jet's forward contractions (`forms`, `along_applied`) and the derivative of
+`forms` along a shape velocity (`forms_along`, in closed form for trees).
 
 In the Hamel variables $v = [\xi; \dot q]$ the accelerations $a = [\dot\xi; \ddot q]$ solve
 the reference form (DESIGN §3) $G a = h(q, v) + \tau$ with
@@ -32,10 +32,11 @@ __all__ = ["body_field_vjp"]
 
 
 def _blocks(system: AbstractSystem, q):
-    """The metric jet at `q`, $I_r^{-1}$ and the connection $A = I_r^{-1}B$."""
-    jet = system.metric_jet(q)
+    """The metric jet at `q`, its derivative (linear in a shape velocity), $I_r^{-1}$ and the
+    connection $A = I_r^{-1}B$."""
+    jet, jet_along = jax.linearize(system.metric_jet, q)
     I_inv = spd_inverse_6x6(jet.metric[:6, :6])
-    return jet, I_inv, matmul(I_inv, jet.metric[:6, 6:])
+    return jet, jet_along, I_inv, matmul(I_inv, jet.metric[:6, 6:])
 
 
 def _lift(A, u):
@@ -46,11 +47,6 @@ def _lift(A, u):
 def _locked(x, d):
     r"""$[x; 0]$: a twist as a velocity of the whole system, shape at rest."""
     return jnp.concatenate([x, jnp.zeros(d, x.dtype)])
-
-
-def _forms_along(system: AbstractSystem, q, X, u):
-    r"""$\partial_u$ of `forms(X)` at fixed velocities: $x_i^T\,\partial_u\partial_k G\,x_j$."""
-    return jax.jvp(lambda q: system.metric_jet(q).forms(X), (q,), (u,))[1]
 
 
 def body_field_vjp(
@@ -81,7 +77,7 @@ def body_field_vjp(
     """
     xi_bar, Udot_bar, qddot_bar = cotangents
     d = q.shape[0]
-    jet, I_inv, A = _blocks(system, q)
+    jet, jet_along, I_inv, A = _blocks(system, q)
     G = jet.metric
     B = G[:6, 6:]
     xi = U - matmul(A, qdot)
@@ -109,14 +105,14 @@ def body_field_vjp(
     z_rate = _locked(-matmul(I_inv, dG_z[:6]), d)
     w_rate = _locked(-matmul(I_inv, dG_w[:6]), d)
     F = jet.forms(jnp.stack([z, w, mu, v, e, a, z_xi, _lift(A, qddot), z_rate, w_rate]))
-    T = _forms_along(system, q, jnp.stack([z, w, mu, v]), qdot)
+    T = jet.forms_along(qdot, jnp.stack([z, w, mu, v]), jet_along)
     q_bar = (
         q_forces
         + T[0, 1]
         + F[8, 1]
         + F[0, 9]  # Ū̇·(∂_q̇A)q̇
         - T[2, 3]  # μᵀ(∂_q̇G)v
-        + 0.5 * _forms_along(system, q, v[None], mu_q)[0, 0]  # ½vᵀ(∂_{μ_q}G)v
+        + 0.5 * jet.forms_along(mu_q, v[None], jet_along)[0, 0]  # ½vᵀ(∂_{μ_q}G)v
         + F[0, 7]  # Ū̇·(∂A)q̈
         + F[4, 3]  # eᵀGv
         - F[2, 5]  # μᵀGa

@@ -12,11 +12,12 @@ import equinox as eqx
 import jax
 import jax.numpy as jnp
 import jax.tree_util as jtu
+from jax.ad_checkpoint import checkpoint_name
 
 from ._dynamics_vjp import body_field_vjp
 from ._effects import Kinematics
 from ._scene import FloatingBase, Scene
-from ._term import AbstractSceneTerm, SceneTerm, scene_field
+from ._term import KEPT_FIELD_OUTPUTS, AbstractSceneTerm, SceneTerm, scene_field
 
 __all__ = ["ReverseModeSceneTerm", "for_reverse_mode"]
 
@@ -44,6 +45,7 @@ def _reverse_mode_field(scene__y, t):
 @_reverse_mode_field.def_fwd
 def _reverse_mode_field_fwd(perturbed, scene__y, t):
     out = _field(scene__y[0], t, scene__y[1])
+    out = checkpoint_name(out, KEPT_FIELD_OUTPUTS)  # the residuals: no stage rematerialized
     return out, out
 
 
@@ -51,12 +53,13 @@ def _materialized(ct, like):
     return jnp.zeros_like(like) if ct is None else ct
 
 
-@_reverse_mode_field.def_bwd
-def _reverse_mode_field_bwd(out, grad_out, perturbed, scene__y, t):
-    scene, (g, x) = scene__y
+def _state_vjp(scene, y, t, out, cotangents):
+    """The cotangent on the state `y = (g, x)` of the field's outputs `out`, by
+    `body_field_vjp`."""
+    g, x = y
     d = scene.system.shape_dim
     q, U, qdot = x[:d], x[d : d + 6], x[d + 6 :]
-    xi_bar, xdot_bar = (_materialized(c, o) for c, o in zip(grad_out, out, strict=True))
+    xi_bar, xdot_bar = cotangents
     Udot, qddot = out[1][d : d + 6], out[1][d + 6 :]
 
     def forces_vjp(mu_xi, mu_q):
@@ -77,13 +80,20 @@ def _reverse_mode_field_bwd(out, grad_out, perturbed, scene__y, t):
         (xi_bar, xdot_bar[d : d + 6], xdot_bar[d + 6 :]),
         forces_vjp,
     )
-    y_bar = (g_bar, jnp.concatenate([q_bar, U_bar, qdot_bar + xdot_bar[:d]]))
-    if not any(jtu.tree_leaves(perturbed[0])):
-        return eqx.filter(scene, lambda _: False), y_bar
-    # The scene's numbers (inertias, effect constants): autodiff of the field at the fixed
-    # state, which transposes only what depends on them.
-    _, vjp = jax.vjp(lambda s: _field(s, t, (g, x)), scene)
-    return vjp((xi_bar, xdot_bar))[0], y_bar
+    return g_bar, jnp.concatenate([q_bar, U_bar, qdot_bar + xdot_bar[:d]])
+
+
+@_reverse_mode_field.def_bwd
+def _reverse_mode_field_bwd(out, grad_out, perturbed, scene__y, t):
+    scene, y = scene__y
+    cotangents = tuple(_materialized(c, o) for c, o in zip(grad_out, out, strict=True))
+    if any(jtu.tree_leaves(perturbed[0])):
+        # The scene's numbers too (inertias, effect constants): they reach every kernel of
+        # the field, so one transpose of it by autodiff for the scene and the state
+        # together costs less than the written-out pass plus a transpose for the scene.
+        _, vjp = jax.vjp(lambda scene, y: _field(scene, t, y), scene, y)
+        return vjp(cotangents)
+    return eqx.filter(scene, lambda _: False), _state_vjp(scene, y, t, out, cotangents)
 
 
 @eqx.filter_jit

@@ -36,6 +36,7 @@ from ._state import State
 from ._systems._ball_chart import ball_columns, recharted_shape
 
 __all__ = [
+    "KEPT_FIELD_OUTPUTS",
     "AbstractBodyTerm",
     "AbstractSceneTerm",
     "SceneTerm",
@@ -71,6 +72,13 @@ def twist_of_tangent(g, gdot):
 def tangent_of_twist(g, xi):
     r"""$\dot g = g\hat\xi$: the tangent vector in $\mathbb R^{4\times4}$ of the body twist $\xi$ at $g$."""
     return dot(g, lie.hat(xi))
+
+
+KEPT_FIELD_OUTPUTS = "bundledyn_kept_field_outputs"
+"""The `jax.ad_checkpoint.checkpoint_name` under which a field's outputs are kept, not
+recomputed, where the Lie-group solvers rematerialize a stage for reverse mode. A field
+whose reverse pass needs only its inputs and outputs (a `jax.custom_vjp`, as
+`ReverseModeSceneTerm`'s) names them so, and its stage is then evaluated once, not twice."""
 
 
 class AbstractBodyTerm(diffrax.AbstractTerm):

@@ -100,7 +100,7 @@ OPTIONS = {
 
 CHECKPOINTED = diffrax.RecursiveCheckpointAdjoint()
 STORED = bd.StoredStepsAdjoint()
-HAND_DERIVED = bd.StoredStepsAdjoint(field_reverse="hand-derived")
+AUTODIFF_FIELD = bd.StoredStepsAdjoint(field_reverse="autodiff")
 
 
 def _assert_gradients_equal(ours, reference):
@@ -139,20 +139,22 @@ def _twist_gradient(case, adjoint, options_key):
     return jax.jit(jax.grad(loss, has_aux=True))
 
 
-def test_with_the_hand_derived_field_reverse_pass_gradients_equal_checkpointed_ones():
-    # A chain under gravity, a spring and a damper: `StoredStepsAdjoint` steps the field
-    # with its hand-derived reverse pass (`ReverseModeSceneTerm`), diffrax with autodiff's.
-    # (Its pass with the scene held constant: tests/test_field_vjp.py.)
+@pytest.mark.parametrize("adjoint", [STORED, AUTODIFF_FIELD], ids=["hand-derived", "autodiff"])
+def test_through_a_chains_field_gradients_equal_checkpointed_ones(adjoint):
+    # A chain under gravity, a spring and a damper, its scene differentiated too:
+    # `StoredStepsAdjoint` steps the field with its reverse pass (`ReverseModeSceneTerm`,
+    # by default) or autodiff's, diffrax with autodiff's.
     case, options = "chain, effects", "RKMK4 ts"
     params = _params(case)
     _assert_gradients_equal(
-        _gradient(case, HAND_DERIVED, options)(params),
-        _gradient(case, CHECKPOINTED, options)(params),
+        _gradient(case, adjoint, options)(params), _gradient(case, CHECKPOINTED, options)(params)
     )
 
 
-def test_with_the_scene_held_constant_gradients_equal_checkpointed_ones():
-    case, options = "rigid", "RKMK87 ts"
+@pytest.mark.parametrize("case, options", [("rigid", "RKMK87 ts"), ("chain, effects", "RKMK4 ts")])
+def test_with_the_scene_held_constant_gradients_equal_checkpointed_ones(case, options):
+    # On the chain, the field's written-out reverse pass alone (no autodiff for the scene).
+    # (That pass at single states: tests/test_field_vjp.py.)
     xi = _params(case)[0]
     _assert_gradients_equal(
         _twist_gradient(case, STORED, options)(xi),

@@ -318,7 +318,7 @@ def test_screw_derivatives_are_along_unit_screws(key):
 def test_metric_derivative_equals_autodiff_of_the_metric(name, key):
     """`metric_and_derivative` and the contractions of `metric_jet` (closed forms for trees
     of bodies) equal jacfwd of `metric`: the derivative along $u$, alone and applied to
-    velocities, and the forms $x^T\\partial_k G\\,y$."""
+    velocities, the forms $x^T\\partial_k G\\,y$ and their derivative along $u$."""
     system = SYSTEMS[name]()
     d = system.shape_dim
 
@@ -332,14 +332,19 @@ def test_metric_derivative_equals_autodiff_of_the_metric(name, key):
             jet.along(u),
             jet.along_applied(u, jnp.stack([x, y])),
             jet.forms(jnp.stack([x, y]))[0, 1],
+            jet.forms_along(u, jnp.stack([x, y]), jax.linearize(system.metric_jet, q)[1])[0, 1],
         )
         dG_u = jnp.tensordot(u, dG_ad, 1)
+        ddG_u = jax.jvp(
+            lambda q: bd.AbstractSystem.metric_and_derivative(system, q)[1], (q,), (u,)
+        )[1]
         autodiff = (
             G_ad,
             dG_ad,
             dG_u,
             jnp.stack([dG_u @ x, dG_u @ y]),
             jnp.einsum("i,kij,j->k", x, dG_ad, y),
+            jnp.einsum("i,kij,j->k", x, ddG_u, y),
         )
         return closed, autodiff
 

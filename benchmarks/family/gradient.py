@@ -9,7 +9,7 @@ default solver at rtol `RTOL` (atol = rtol / 100) and its default step control:
    run, or gives a non-finite gradient, is recorded with its error and no time;
 2. the VJP of the body field the RKMK stages evaluate (`bd.SceneTerm.body_vf`) over the
    field, and the VJP of one `RKMK87` step (at the forward solve's mean step) over the
-   step, each in a compiled loop (`speed.gradient.gradient_units`, as part 5c of the speed
+   step, both as the default adjoint takes them, each in a compiled loop (`speed.gradient.gradient_units`, as part 5c of the speed
    benchmark measures them on the chain).
 """
 
@@ -43,16 +43,14 @@ def default_adjoint_name() -> str:
 
 
 def adjoints() -> dict:
-    """The adjoints compared: `simulate`'s default (None), the same with the field's
-    hand-derived reverse pass, and diffrax's checkpointed discretise-then-optimise and its
-    continuous backsolve."""
+    """The adjoints compared: `simulate`'s default (None, with the field's written-out
+    reverse pass), the same with autodiff's, and diffrax's checkpointed
+    discretise-then-optimise and its continuous backsolve."""
     import bundledyn as bd
 
     return {
         DEFAULT: None,
-        "StoredStepsAdjoint, hand-derived field": bd.StoredStepsAdjoint(
-            field_reverse="hand-derived"
-        ),
+        "StoredStepsAdjoint, autodiff field": bd.StoredStepsAdjoint(field_reverse="autodiff"),
         "RecursiveCheckpointAdjoint": diffrax.RecursiveCheckpointAdjoint(),
         "BacksolveAdjoint": diffrax.BacksolveAdjoint(),
     }

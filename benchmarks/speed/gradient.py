@@ -2,6 +2,7 @@
 of diffrax's own adjoint loop; its peak memory over 10⁵ steps (5b); and where its time
 goes (5c)."""
 
+import functools as ft
 import resource
 import time
 
@@ -131,32 +132,33 @@ def vjp_unit(fn):
 def gradient_units(scene, state, t1, rtol):
     """Part 5c: samplers of where the gradient's time goes, per call in compiled loops
     (`loop_sampler`): the body field the RKMK stages evaluate (`bd.SceneTerm.body_vf`), one
-    `RKMK87` step at the forward solve's mean step, and their VJPs; with the solve's steps
-    (accepted and rejected)."""
+    `RKMK87` step at the forward solve's mean step, and their VJPs as `simulate`'s default
+    adjoint takes them (through the field's written-out reverse pass where it covers the
+    scene, `ReverseModeSceneTerm`); with the solve's steps (accepted and rejected)."""
+    from bundledyn._reverse_term import for_reverse_mode
+
     options = simulate_options("RKMK87", "adaptive", rtol)
     steps = int(bd.simulate(scene, state, t1, **options).stats["num_steps"])
     term, solver = bd.SceneTerm(scene), bd.RKMK87(dense_output=False)
     y = term.encode(0.0, state)
 
-    def field(i, y):  # the twist as a 4×4 matrix, so that the loop can feed it back as y
+    def field(i, y, term=term):  # the twist as a 4×4 matrix, so that the loop can feed it back
         xi, xdot = term.body_vf(0.0, y, None)
         return bd.lie.se3_hat(xi), xdot
 
-    def step(i, y):
+    def step(i, y, term=term):
         return solver.step(term, 0.0, t1 / steps, y, None, None, False)[0]
 
-    units = {
-        "field": field,
-        "field_vjp": vjp_unit(field),
-        "step": step,
-        "step_vjp": vjp_unit(step),
-    }
+    def reverse(fn):
+        return vjp_unit(ft.partial(fn, term=for_reverse_mode(term)))
+
+    units = {"field": field, "field_vjp": reverse(field), "step": step, "step_vjp": reverse(step)}
     calls = {"field": LOOP_EVALS, "step": LOOP_EVALS // 10}
     samplers = {k: loop_sampler(fn, y, calls[k.split("_")[0]]) for k, fn in units.items()}
     return samplers, {
         "steps": steps,
         "stages": solver.tableau.step_stages,
-        "field_unit": "body field (`SceneTerm.body_vf`)",
+        "field_unit": "body field (`SceneTerm.body_vf`); VJPs as `simulate`'s default adjoint",
     }
 
 

@@ -48,9 +48,11 @@ _C_SERIES = tuple((-1) ** k / math.factorial(2 * k + 3) for k in range(_N_TERMS)
 _D_SERIES = tuple(
     float(abs(_bernoulli(2 * n)) / math.factorial(2 * n)) for n in range(1, _N_TERMS + 1)
 )
-# dB/dx and dC/dx, the series differentiated term by term.
+# dB/dx and dC/dx, the series differentiated term by term, and their derivatives.
 _E_SERIES = tuple(k * b for k, b in enumerate(_B_SERIES) if k)
 _F_SERIES = tuple(k * c for k, c in enumerate(_C_SERIES) if k)
+_G_SERIES = tuple(k * e for k, e in enumerate(_E_SERIES) if k)
+_H_SERIES = tuple(k * f for k, f in enumerate(_F_SERIES) if k)
 
 
 def _horner(coeffs, x):
@@ -67,13 +69,16 @@ _SERIES = {
     "d": _D_SERIES,
     "e": _E_SERIES,
     "f": _F_SERIES,
+    "g": _G_SERIES,
+    "h": _H_SERIES,
 }
 
 
 def _coefficients(x, names):
-    """The coefficients `names` (from "abcdef") as functions of x = θ², safe at x = 0.
+    """The coefficients `names` (from "abcdefgh") as functions of x = θ², safe at x = 0.
 
-    `e` and `f` are dB/dx = (A - 2B)/(2x) and dC/dx = (B - 3C)/(2x).
+    `e` and `f` are dB/dx = (A - 2B)/(2x) and dC/dx = (B - 3C)/(2x); `g` and `h` are
+    d²B/dx² = (A' - 4e)/(2x) and d²C/dx² = (e - 5f)/(2x), with A' = dA/dx = (cos θ - A)/(2x).
 
     One branch mask for all: Taylor series (Horner) for x < 1, closed form on a
     substituted safe argument otherwise, so neither branch produces inf/NaN, nor do their
@@ -93,6 +98,8 @@ def _coefficients(x, names):
         "d": lambda: (1.0 - h * jnp.cos(h) / sin_h) / xl,
         "e": lambda: (sin_t / t - 4.0 * sin_h * sin_h / xl) / (2.0 * xl),
         "f": lambda: (2.0 * sin_h * sin_h / xl - 3.0 * (t - sin_t) / (xl * t)) / (2.0 * xl),
+        "g": lambda: ((jnp.cos(t) - sin_t / t) / (2.0 * xl) - 4.0 * closed["e"]()) / (2.0 * xl),
+        "h": lambda: (closed["e"]() - 5.0 * closed["f"]()) / (2.0 * xl),
     }
     return tuple(jnp.where(small, _horner(_SERIES[n], xs), closed[n]()) for n in names)
 
@@ -238,6 +245,49 @@ def so3_dexp_derivative(w):
     hat_w = so3_hat(w)[..., None, :, :]
     hat_w2 = (w[..., :, None] * w[..., None, :] - x[..., None, None] * e)[..., None, :, :]
     return -b * so3_hat(e) + c * (outer - 2.0 * wl * e) + 2.0 * wl * (-db * hat_w + dc * hat_w2)
+
+
+def so3_dexp_second_derivative(w):
+    r"""The second derivative of `so3_dexp`: $\partial_m\partial_l\,\mathrm{dexp}(w)$.
+
+    Differentiating `so3_dexp_derivative` once more, with $P_l = w e_l^T + e_l w^T - 2w_l 1$
+    ($= \partial_l \tilde w^2$) and the primes $d/dx$:
+    $\partial_m\partial_l\,\mathrm{dexp} = -2B'(w_m\tilde e_l + w_l\tilde e_m)
+    + 2C'(w_m P_l + w_l P_m) + C\,\partial_m P_l + 2\delta_{lm}(-B'\tilde w + C'\tilde w^2)
+    + 4w_lw_m(-B''\tilde w + C''\tilde w^2)$.
+
+    **Arguments:**
+
+    - `w`: rotation vector, shape `(..., 3)`.
+
+    **Returns:**
+
+    Array of shape `(..., 3, 3, 3, 3)`, the derivatives along $w_m$ then $w_l$ first.
+    """
+    w = _float(w)
+    x = _sq(w)
+    b, c, db, dc, ddb, ddc = (k[..., None, None, None, None] for k in _coefficients(x, "bcefgh"))
+    e = jnp.eye(3, dtype=w.dtype)
+    w_m = w[..., :, None, None, None]
+    w_l = w[..., None, :, None, None]
+    hat_e = so3_hat(e)
+    hat_w = so3_hat(w)[..., None, None, :, :]
+    hat_w2 = (w[..., :, None] * w[..., None, :] - x[..., None, None] * e)[..., None, None, :, :]
+    outer = w[..., None, :, None] * e[:, None, :] + e[:, :, None] * w[..., None, None, :]
+    P = outer - 2.0 * w[..., :, None, None] * e  # P[l] = ∂_l w̃²
+    dP = (
+        e[:, None, :, None] * e[None, :, None, :]
+        + e[None, :, :, None] * e[:, None, None, :]
+        - 2.0 * e[:, :, None, None] * e
+    )
+    delta = e[:, :, None, None]
+    return (
+        -2.0 * db * (w_m * hat_e + w_l * hat_e[:, None])
+        + 2.0 * dc * (w_m * P[..., None, :, :, :] + w_l * P[..., :, None, :, :])
+        + c * dP
+        + 2.0 * delta * (-db * hat_w + dc * hat_w2)
+        + 4.0 * w_m * w_l * (-ddb * hat_w + ddc * hat_w2)
+    )
 
 
 def so3_dexp_inv(w):

@@ -84,22 +84,22 @@ class StoredStepsAdjoint(diffrax.AbstractAdjoint):
     - `max_memory`: the most bytes the stored states may take (default 1 GiB).
     - `fallback`: the adjoint used past the budget or where this one does not apply
       (default `diffrax.RecursiveCheckpointAdjoint()`, binomial checkpointing).
-    - `field_reverse`: how each step's VJP passes through a scene's field: `"autodiff"`
-      (default) or `"hand-derived"`, the field's reverse pass written out
+    - `field_reverse`: how each step's VJP passes through a scene's field:
+      `"hand-derived"` (default), the field's reverse pass written out
       (`ReverseModeSceneTerm`: a floating base and a free shape in the Galilean frame;
-      other scenes keep autodiff). The same gradients either way. It makes the field's VJP
-      cheaper (on a family of trees, `benchmarks/`, 4.0-5.3x the field alone where
-      autodiff's is 5.5-7.6x, except with ball joints), but inside a step its second-order
-      part (two forward-mode derivatives of the metric jet's forms) costs about three times
-      as much as alone, and whether the whole gradient is shorter is within the runs' noise:
-      faster in 12 of 17 members of one family run (median 8.6x against 9.0x the forward
-      solve), slower by 13-23 % on ball- and composite-joint trees in a separate alternated
-      comparison. Hence an option, not the default.
+      other scenes keep autodiff), or `"autodiff"`. The same gradients either way. The
+      written-out pass needs only the field's inputs and outputs, so the step keeps those
+      instead of evaluating each stage a second time; with respect to the state (`y0`) the
+      gradient then takes about two thirds of autodiff's time on a family of trees
+      (`benchmarks/`). Where the scene's numbers are differentiated too, both transpose the
+      field by autodiff, and `"autodiff"` is a few percent faster.
     """
 
     max_memory: int = eqx.field(default=2**30, static=True)
     fallback: diffrax.AbstractAdjoint = diffrax.RecursiveCheckpointAdjoint()
-    field_reverse: Literal["autodiff", "hand-derived"] = eqx.field(default="autodiff", static=True)
+    field_reverse: Literal["autodiff", "hand-derived"] = eqx.field(
+        default="hand-derived", static=True
+    )
 
     def __check_init__(self):
         if self.field_reverse not in ("autodiff", "hand-derived"):

@@ -34,7 +34,7 @@ from diffrax import RESULTS, AbstractAdaptiveSolver, AbstractTerm
 
 from .. import lie
 from .._linalg import dot
-from .._term import split
+from .._term import KEPT_FIELD_OUTPUTS, split
 from ._base import AbstractLieGroupSolver
 from ._chart import body_field, checked_start, from_chart, recharted
 from ._interpolation import LieLocalInterpolation
@@ -43,6 +43,7 @@ from ._tableau import LieButcherTableau, dopri5_tableau, dopri8_tableau, rk4_tab
 __all__ = ["AbstractRKMK", "RKMK4", "RKMK54", "RKMK87"]
 
 _HIGHEST = lax.Precision.HIGHEST
+_KEPT = jax.checkpoint_policies.save_only_these_names(KEPT_FIELD_OUTPUTS)
 
 
 def _combine(w, stack):
@@ -79,7 +80,9 @@ class AbstractRKMK(AbstractLieGroupSolver):
       vector field is traced once; reusing an FSAL stage would need a `lax.cond` or a
       second trace of the field, each dearer on the CPU than the evaluation it saves.
     - Under reverse-mode differentiation each stage is recomputed (`jax.checkpoint`)
-      rather than the field's intermediates stored over the stages, which cost more.
+      rather than the field's intermediates stored over the stages, which cost more;
+      a field's outputs named `KEPT_FIELD_OUTPUTS` are kept instead (a field with its own
+      reverse pass is then not evaluated twice).
     - Dense output: `LieLocalInterpolation`, the tableau's continuous extension in the
       chart $g_0\exp\hat\Theta$, which stays on the group. With `dense_output=False` a
       step evaluates only the stages that the solution and the error estimate use
@@ -132,7 +135,8 @@ class AbstractRKMK(AbstractLieGroupSolver):
         ks0 = [jnp.zeros((*jnp.shape(x), s), dtype=jnp.result_type(x)) for x in rest0]
         # Rematerialized under reverse mode: the scan then stores each stage's inputs, not
         # the field's intermediates stacked over the stages (see the class docstring).
-        stage = jax.checkpoint(stage, prevent_cse=False)  # a scan body needs no CSE barrier
+        # A scan body needs no CSE barrier.
+        stage = jax.checkpoint(stage, prevent_cse=False, policy=_KEPT)
         n = s if self.dense_output else tab.step_stages
         (kappas, ks), _ = lax.scan(stage, (kappas0, ks0), jnp.arange(n), length=n)
 

@@ -1,6 +1,7 @@
 """The metric and its first derivative at one shape, read through the contractions the equations use."""
 
 import abc
+from collections.abc import Callable
 
 import equinox as eqx
 import jax
@@ -45,6 +46,28 @@ class AbstractMetricJet(eqx.Module):
 
         `F[i, j, k]` $= x_i^T \partial_k G\, x_j$, symmetric in `i, j`.
         """
+
+    def forms_along(
+        self,
+        u: Float[Array, " d"],
+        X: Float[Array, "m 6+d"],
+        jet_along: Callable[[Float[Array, " d"]], "AbstractMetricJet"],
+    ) -> Float[Array, "m m d"]:
+        r"""$\partial_u$ of `forms(X)` at fixed velocities: $x_i^T\,\partial_u\partial_k G\,x_j$.
+
+        **Arguments:**
+
+        - `u`: a shape velocity, shape `(d,)`.
+        - `X`: as in `forms`.
+        - `jet_along`: the jet's own derivative, linear in $u$ (from `jax.linearize` of the
+          system's `metric_jet`). The default pushes it forward through `forms`; a jet with
+          a closed form need not call it.
+
+        **Returns:**
+
+        Shape `(m, m, d)`, as `forms`.
+        """
+        return jax.jvp(lambda jet: jet.forms(X), (self,), (jet_along(u),))[1]
 
     def derivative(self) -> Float[Array, "d 6+d 6+d"]:
         r"""All partial derivatives, `dG[k]` $= \partial G/\partial q_k$ (one `along` per coordinate)."""

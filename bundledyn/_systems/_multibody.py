@@ -9,7 +9,7 @@ import numpy as np
 from jaxtyping import Array, Float
 
 from .. import lie
-from .._lie._so3 import so3_dexp_derivative
+from .._lie._so3 import so3_dexp_derivative, so3_dexp_second_derivative
 from .._linalg import einsum, matmul, take
 from ._base import AbstractInertialSystem, autodiff_metric_jet
 from ._link import Link
@@ -346,9 +346,13 @@ class Multibody(AbstractMultibody):
         r"""$\operatorname{Ad}_{T} \partial S_i/\partial\varphi_l$ of each ball joint's own columns,
         $S = [J_r; \hat a J_r]$ with $J_r = \operatorname{dexp}(\varphi)$ (`so3_dexp_derivative`)."""
         cols = np.array(self.tables.q_start)[ball_nodes][:, None] + np.arange(3)
-        dJr = so3_dexp_derivative(take(q, cols))  # (k, l, 3, i)
+        phi = take(q, cols)
+        dJr = so3_dexp_derivative(phi)  # (k, l, 3, i)
         values = jnp.swapaxes(self._ball_twists(T, ball_nodes, dJr), -1, -2)
-        return BallColumnDerivative(values, tuple(map(tuple, cols.tolist())), self.shape_dim)
+        ddJr = so3_dexp_second_derivative(phi)  # (k, m, l, 3, i)
+        second = jnp.swapaxes(self._ball_twists(T, ball_nodes, ddJr), -1, -2)
+        columns = tuple(map(tuple, cols.tolist()))
+        return BallColumnDerivative(values, second, columns, self.shape_dim)
 
     def with_pseudo_inertias(self, P) -> "Multibody":
         m, c, J = inertial_from_pseudo_inertia(P)

@@ -35,10 +35,13 @@ class BallColumnDerivative(eqx.Module):
     $3\times 3$ twists per joint are not zero: `values[k, l, i]` $= \partial Z_{c_{ki}} /
     \partial q_{c_{kl}}$ with $c_k$ = `columns[k]` joint $k$'s coordinates. The two
     contractions the metric jet needs are formed from these blocks and placed among the
-    $d$ columns by constant slices.
+    $d$ columns by constant slices. `second[k, m, l, i]` is the derivative of
+    `values[k, l, i]` along $q_{c_{km}}$ with the joint's node held still (the next
+    derivative of its $\operatorname{dexp}$), for the jet's second derivatives.
     """
 
     values: Float[Array, "k 3 3 6"]
+    second: Float[Array, "k 3 3 3 6"]
     columns: tuple[tuple[int, int, int], ...] = eqx.field(static=True)
     shape_dim: int = eqx.field(static=True)
 
@@ -54,15 +57,41 @@ class BallColumnDerivative(eqx.Module):
         zero = jnp.zeros_like(take(blocks, [0], axis=axis))
         return take(jnp.concatenate([blocks, zero], axis=axis), self._placement(), axis=axis)
 
+    def _own(self, x, axis=0):
+        """Each joint's own coordinates of `x` (along `axis`), shape `(k, 3)` there."""
+        return take(x, np.array(self.columns), axis=axis)
+
     def along(self, u):
         r"""$\sum_m u_m\,\partial Z_j/\partial q_m$, shape `(6, d)`."""
-        blocks = jnp.einsum("kl,klix->kix", take(u, np.array(self.columns)), self.values)
+        blocks = jnp.einsum("kl,klix->kix", self._own(u), self.values)
         return self._placed(blocks.reshape(-1, 6), axis=0).T
+
+    def _applied(self, values, V):
+        blocks = jnp.einsum("klix,rki->rklx", values, self._own(V, axis=1))
+        return self._placed(blocks.reshape(V.shape[0], -1, 6), axis=1)
 
     def applied(self, V):
         r"""$\sum_j (\partial Z_j/\partial q_m) v_j$ for each row $v$ of `V` `(r, d)`: shape `(r, d, 6)`."""
-        blocks = jnp.einsum("klix,rki->rklx", self.values, take(V, np.array(self.columns), axis=1))
-        return self._placed(blocks.reshape(V.shape[0], -1, 6), axis=1)
+        return self._applied(self.values, V)
+
+    def applied_along(self, u, W_columns, V):
+        r"""$\partial_u$ of `applied(V)` at fixed `V`.
+
+        The joint's node moves with the twist $W$ of the joints at or above it, which turns
+        each block by $\operatorname{ad}_W$, and its own coordinates move its
+        $\operatorname{dexp}$ (`second`).
+
+        **Arguments:**
+
+        - `u`: the shape velocity, shape `(d,)`.
+        - `W_columns`: for each column, the twist of the joints at or above it, `(d, 6)`.
+        - `V`: as in `applied`.
+        """
+        W = take(W_columns, np.array(self.columns)[:, 0])[:, None, None, :]
+        values = lie.bracket(W, self.values) + jnp.einsum(
+            "km,kmlix->klix", self._own(u), self.second
+        )
+        return self._applied(values, V)
 
 
 class TreeMetricJet(AbstractMetricJet):
@@ -91,42 +120,79 @@ class TreeMetricJet(AbstractMetricJet):
         r"""$\hat J_a x$ with the columns `Z`, for each row $x$ of `X`: shape (m, n, 6)."""
         return X[:, None, :6] + einsum("il,ml,al->mai", Z, X[:, 6:], self.path)
 
+    def _parent_twists(self, Z, X):
+        r"""$N_k(x)$, the twist of joint $k$'s parent node, with the columns `Z`, for each row
+        $x$ of `X`: shape (m, d, 6)."""
+        return X[:, None, :6] + einsum("ij,mj,jk->mki", Z, X[:, 6:], self.strictly_above)
+
     def _subtree_sums(self, f):
         r"""$\sum_{a \succeq l} f_a$ for each column $l$ of per-body vectors `f` (m, n, 6): (m, d, 6)."""
         return jnp.einsum("al,mai->mli", self.path, f)
+
+    def _rates(self, u):
+        r"""How moving the joints by $u$ moves the tree: for each column the twist $W_j$ of
+        the joints at or above it `(d, 6)`, the columns' derivative $\partial_u Z_j =
+        [W_j, Z_j]$ (plus a ball joint's $\operatorname{dexp}$ term) `(6, d)`, and each
+        body's twist $W_a$ `(n, 6)`."""
+        Zu = self.Z * u
+        # Row j of `joints_at_or_above` (`at_or_above` transposed) marks the joints at or
+        # above j. As its own constant XLA lays it out for this product alone; sharing
+        # `composite_metric`'s table cost a copy into the other layout on every call.
+        W_columns = matmul(self.joints_at_or_above, Zu.T)
+        dZ = lie.bracket(W_columns, self.Z.T).T
+        if self.ball_dZ is not None:
+            dZ = dZ + self.ball_dZ.along(u)
+        return W_columns, dZ, einsum("il,al->ai", Zu, self.path)
+
+    def _momenta(self, W, dZ, X):
+        r"""Each body's momentum $p_a = \tilde M_a V_a(x)$ and its derivative along $u$,
+        $\operatorname{ad}^*_{W_a} p_a + \tilde M_a \delta V_a$ with
+        $\delta V_a = (\partial_u \hat J_a)x - [W_a, V_a]$ (`_rates`' `W`, `dZ`): (m, n, 6) each."""
+        V = self._twists(self.Z, X)
+        p = jnp.einsum("aij,maj->mai", self.inertias, V)
+        dV = self._twists(dZ, jnp.concatenate([jnp.zeros_like(X[:, :6]), X[:, 6:]], 1))
+        dV = dV - lie.bracket(W, V)
+        return p, lie.coad_action(W, p) + jnp.einsum("aij,maj->mai", self.inertias, dV)
+
+    def _column_brackets(self, X):
+        r"""$[Z_k, N_k(x)]$ (minus a ball joint's $\operatorname{dexp}$ term) and $N_k(x)$."""
+        N = self._parent_twists(self.Z, X)
+        ZN = lie.bracket(self.Z.T, N)
+        if self.ball_dZ is not None:
+            ZN = ZN - self.ball_dZ.applied(X[:, 6:])
+        return ZN, N
 
     def along(self, u):
         return self.along_applied(u, jnp.eye(self.metric.shape[0], dtype=self.metric.dtype))
 
     def along_applied(self, u, X):
-        # Moving the joints by u moves body a by W_a and column j by ∂_u Z_j = [W_j, Z_j],
-        # W_j the twist of the joints at or above j; then with V = Ĵx and p = M̃V,
-        # (∂_u G)x = Σ_a Ĵ_aᵀ(ad*_{W_a} p_a + M̃_a δV_a) + [0; ∂_u Z_l · Π_l], where
-        # δV_a = (∂_u Ĵ_a)x - [W_a, V_a] is the change of the body twist.
-        Zu = self.Z * u
-        # Row j of `joints_at_or_above` (`at_or_above` transposed) marks the joints at or
-        # above j. As its own constant XLA lays it out for this product alone; sharing
-        # `composite_metric`'s table cost a copy into the other layout on every call.
-        dZ = lie.bracket(matmul(self.joints_at_or_above, Zu.T), self.Z.T).T
-        if self.ball_dZ is not None:
-            dZ = dZ + self.ball_dZ.along(u)
-        W = einsum("il,al->ai", Zu, self.path)
-        V = self._twists(self.Z, X)
-        p = jnp.einsum("aij,maj->mai", self.inertias, V)
-        dV = self._twists(dZ, jnp.concatenate([jnp.zeros_like(X[:, :6]), X[:, 6:]], 1))
-        dV = dV - lie.bracket(W, V)
-        f = lie.coad_action(W, p) + jnp.einsum("aij,maj->mai", self.inertias, dV)
+        # Moving the joints by u moves body a by W_a and column j by ∂_u Z_j = [W_j, Z_j];
+        # then with V = Ĵx and p = M̃V, (∂_u G)x = Σ_a Ĵ_aᵀ ∂_u p_a + [0; ∂_u Z_l · Π_l].
+        _, dZ, W = self._rates(u)
+        p, f = self._momenta(W, dZ, X)
         shape = jnp.einsum("il,mli->ml", self.Z, self._subtree_sums(f)) + jnp.einsum(
             "il,mli->ml", dZ, self._subtree_sums(p)
         )
         return jnp.concatenate([jnp.sum(f, axis=1), shape], axis=1)
 
     def forms(self, X):
-        N = X[:, None, :6] + einsum("ij,mj,jk->mki", self.Z, X[:, 6:], self.strictly_above)
-        V = self._twists(self.Z, X)
-        Pi = self._subtree_sums(jnp.einsum("aij,maj->mai", self.inertias, V))  # (m, d, 6)
-        ZN = lie.bracket(self.Z.T, N)  # [Z_k, N_k(x_i)]
-        if self.ball_dZ is not None:
-            ZN = ZN - self.ball_dZ.applied(X[:, 6:])
+        ZN, _ = self._column_brackets(X)
+        Pi = self._subtree_sums(jnp.einsum("aij,maj->mai", self.inertias, self._twists(self.Z, X)))
         half = -jnp.einsum("ikx,jkx->ijk", ZN, Pi)
+        return half + jnp.swapaxes(half, 0, 1)
+
+    def forms_along(self, u, X, jet_along):
+        r"""$\partial_u$ of `forms(X)`, differentiating $-[Z_k, N_k(x)]\cdot\Pi_k(y)$ factor by
+        factor: $\partial_u Z_k$, $\partial_u N_k(x) = N_k(x)$ with the columns $\partial_u Z$
+        and no base twist, and $\partial_u \Pi_k(y)$ the subtree sum of `_momenta`' rates
+        (the same rates as `along_applied`); `jet_along` is not called."""
+        W_columns, dZ, W = self._rates(u)
+        p, f = self._momenta(W, dZ, X)
+        ZN, N = self._column_brackets(X)
+        X_shape = jnp.concatenate([jnp.zeros_like(X[:, :6]), X[:, 6:]], 1)
+        dZN = lie.bracket(dZ.T, N) + lie.bracket(self.Z.T, self._parent_twists(dZ, X_shape))
+        if self.ball_dZ is not None:
+            dZN = dZN - self.ball_dZ.applied_along(u, W_columns, X[:, 6:])
+        Pi, dPi = self._subtree_sums(p), self._subtree_sums(f)
+        half = -jnp.einsum("ikx,jkx->ijk", dZN, Pi) - jnp.einsum("ikx,jkx->ijk", ZN, dPi)
         return half + jnp.swapaxes(half, 0, 1)
