@@ -88,16 +88,13 @@ def body_field_vjp(
     mu_q = spd_solve(G[6:, 6:] - matmul(B.T, A), qddot_bar)
     mu_xi = matmul(I_inv, Udot_bar - matmul(B, mu_q))
     mu = jnp.concatenate([mu_xi, mu_q])
-    dG_w, dG_mu, dG_z = jet.along_applied(qdot, jnp.stack([w, mu, z]))
+    along_qdot, T = jet.along_both(qdot, jnp.stack([z, w, mu, v]), jet_along)
+    dG_z, dG_w, dG_mu = along_qdot[:3]
+    along_mu, T_mu = jet.along_both(mu_q, v[None], jet_along)
     a = jnp.concatenate([Udot - matmul(I_inv, dG_w[:6]) - matmul(A, qddot), qddot])
     e = _locked(lie.bracket(xi, mu_xi), d)  # μ_ξ·ad_ξᵀp = eᵀGv
     p = matmul(G[:6], v)
-    v_bar = (
-        matmul(G, e)
-        + _locked(-matmul(lie.ad(mu_xi).T, p), d)
-        + jet.along_applied(mu_q, v[None])[0]
-        - dG_mu
-    )
+    v_bar = matmul(G, e) + _locked(-matmul(lie.ad(mu_xi).T, p), d) + along_mu[0] - dG_mu
     q_forces, xi_forces, qdot_forces, rest = forces_vjp(mu_xi, mu_q)
     xi_total = xi_bar + v_bar[:6] + xi_forces
     z_xi = _locked(matmul(I_inv, xi_total), d)
@@ -105,14 +102,13 @@ def body_field_vjp(
     z_rate = _locked(-matmul(I_inv, dG_z[:6]), d)
     w_rate = _locked(-matmul(I_inv, dG_w[:6]), d)
     F = jet.forms(jnp.stack([z, w, mu, v, e, a, z_xi, _lift(A, qddot), z_rate, w_rate]))
-    T = jet.forms_along(qdot, jnp.stack([z, w, mu, v]), jet_along)
     q_bar = (
         q_forces
         + T[0, 1]
         + F[8, 1]
         + F[0, 9]  # Ū̇·(∂_q̇A)q̇
         - T[2, 3]  # μᵀ(∂_q̇G)v
-        + 0.5 * jet.forms_along(mu_q, v[None], jet_along)[0, 0]  # ½vᵀ(∂_{μ_q}G)v
+        + 0.5 * T_mu[0, 0]  # ½vᵀ(∂_{μ_q}G)v
         + F[0, 7]  # Ū̇·(∂A)q̈
         + F[4, 3]  # eᵀGv
         - F[2, 5]  # μᵀGa

@@ -69,6 +69,16 @@ class AbstractMetricJet(eqx.Module):
         """
         return jax.jvp(lambda jet: jet.forms(X), (self,), (jet_along(u),))[1]
 
+    def along_both(
+        self,
+        u: Float[Array, " d"],
+        X: Float[Array, "m 6+d"],
+        jet_along: Callable[[Float[Array, " d"]], "AbstractMetricJet"],
+    ) -> tuple[Float[Array, "m 6+d"], Float[Array, "m m d"]]:
+        r"""`along_applied(u, X)` and `forms_along(u, X, jet_along)` together, which a jet
+        may compute from the same rates."""
+        return self.along_applied(u, X), self.forms_along(u, X, jet_along)
+
     def derivative(self) -> Float[Array, "d 6+d 6+d"]:
         r"""All partial derivatives, `dG[k]` $= \partial G/\partial q_k$ (one `along` per coordinate)."""
         d = self.metric.shape[0] - 6

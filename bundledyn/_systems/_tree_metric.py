@@ -166,10 +166,12 @@ class TreeMetricJet(AbstractMetricJet):
         return self.along_applied(u, jnp.eye(self.metric.shape[0], dtype=self.metric.dtype))
 
     def along_applied(self, u, X):
+        return self._along_applied(X, *self._rates(u))
+
+    def _along_applied(self, X, W_columns, dZ, W, momenta=None):
         # Moving the joints by u moves body a by W_a and column j by ∂_u Z_j = [W_j, Z_j];
         # then with V = Ĵx and p = M̃V, (∂_u G)x = Σ_a Ĵ_aᵀ ∂_u p_a + [0; ∂_u Z_l · Π_l].
-        _, dZ, W = self._rates(u)
-        p, f = self._momenta(W, dZ, X)
+        p, f = self._momenta(W, dZ, X) if momenta is None else momenta
         shape = jnp.einsum("il,mli->ml", self.Z, self._subtree_sums(f)) + jnp.einsum(
             "il,mli->ml", dZ, self._subtree_sums(p)
         )
@@ -186,8 +188,14 @@ class TreeMetricJet(AbstractMetricJet):
         factor: $\partial_u Z_k$, $\partial_u N_k(x) = N_k(x)$ with the columns $\partial_u Z$
         and no base twist, and $\partial_u \Pi_k(y)$ the subtree sum of `_momenta`' rates
         (the same rates as `along_applied`); `jet_along` is not called."""
-        W_columns, dZ, W = self._rates(u)
-        p, f = self._momenta(W, dZ, X)
+        return self.along_both(u, X, jet_along)[1]
+
+    def along_both(self, u, X, jet_along):
+        # One `_rates` and `_momenta` for both (`forms_along` alone leaves the first to
+        # XLA's dead-code elimination).
+        rates = self._rates(u)
+        W_columns, dZ, W = rates
+        p, f = momenta = self._momenta(W, dZ, X)
         ZN, N = self._column_brackets(X)
         X_shape = jnp.concatenate([jnp.zeros_like(X[:, :6]), X[:, 6:]], 1)
         dZN = lie.bracket(dZ.T, N) + lie.bracket(self.Z.T, self._parent_twists(dZ, X_shape))
@@ -195,4 +203,4 @@ class TreeMetricJet(AbstractMetricJet):
             dZN = dZN - self.ball_dZ.applied_along(u, W_columns, X[:, 6:])
         Pi, dPi = self._subtree_sums(p), self._subtree_sums(f)
         half = -jnp.einsum("ikx,jkx->ijk", dZN, Pi) - jnp.einsum("ikx,jkx->ijk", ZN, dPi)
-        return half + jnp.swapaxes(half, 0, 1)
+        return self._along_applied(X, *rates, momenta), half + jnp.swapaxes(half, 0, 1)
