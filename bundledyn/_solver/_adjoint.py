@@ -90,8 +90,8 @@ class StoredStepsAdjoint(diffrax.AbstractAdjoint):
       other scenes keep autodiff), or `"autodiff"`. The same gradients either way. The
       written-out pass needs only the field's inputs and outputs, so the step keeps those
       instead of evaluating each stage a second time; with respect to the state (`y0`) the
-      gradient then takes about two thirds of autodiff's time on a family of trees
-      (`benchmarks/`). Where the scene's numbers are differentiated too, both transpose the
+      gradient then takes 0.55-0.84x autodiff's time on a family of trees (median 0.59,
+      `benchmarks/`). Where the scene's numbers are differentiated too, both transpose the
       field by autodiff, and `"autodiff"` is a few percent faster.
     """
 
