@@ -32,11 +32,10 @@ __all__ = ["body_field_vjp"]
 
 
 def _blocks(system: AbstractSystem, q):
-    """The metric jet at `q`, its derivative (linear in a shape velocity), $I_r^{-1}$ and the
-    connection $A = I_r^{-1}B$."""
-    jet, jet_along = jax.linearize(system.metric_jet, q)
+    """The metric jet at `q`, $I_r^{-1}$ and the connection $A = I_r^{-1}B$."""
+    jet = system.metric_jet(q)
     I_inv = spd_inverse_6x6(jet.metric[:6, :6])
-    return jet, jet_along, I_inv, matmul(I_inv, jet.metric[:6, 6:])
+    return jet, I_inv, matmul(I_inv, jet.metric[:6, 6:])
 
 
 def _lift(A, u):
@@ -77,7 +76,11 @@ def body_field_vjp(
     """
     xi_bar, Udot_bar, qddot_bar = cotangents
     d = q.shape[0]
-    jet, jet_along, I_inv, A = _blocks(system, q)
+    jet, I_inv, A = _blocks(system, q)
+
+    def jet_along(u):  # traced only by a jet without closed-form second derivatives
+        return jax.jvp(system.metric_jet, (q,), (u,))[1]
+
     G = jet.metric
     B = G[:6, 6:]
     xi = U - matmul(A, qdot)

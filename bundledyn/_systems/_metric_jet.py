@@ -59,9 +59,9 @@ class AbstractMetricJet(eqx.Module):
 
         - `u`: a shape velocity, shape `(d,)`.
         - `X`: as in `forms`.
-        - `jet_along`: the jet's own derivative, linear in $u$ (from `jax.linearize` of the
-          system's `metric_jet`). The default pushes it forward through `forms`; a jet with
-          a closed form need not call it.
+        - `jet_along`: the jet's own derivative along $u$ (`jax.jvp` of the system's
+          `metric_jet`). The default pushes it forward through `forms`; a jet with a closed
+          form does not call it.
 
         **Returns:**
 

@@ -125,6 +125,10 @@ class TreeMetricJet(AbstractMetricJet):
         $x$ of `X`: shape (m, d, 6)."""
         return X[:, None, :6] + einsum("ij,mj,jk->mki", Z, X[:, 6:], self.strictly_above)
 
+    def _shape_part(self, X):
+        r"""The rows $[0; \dot q]$ of velocities $[\xi; \dot q]$: what moves the columns' rates."""
+        return jnp.concatenate([jnp.zeros_like(X[:, :6]), X[:, 6:]], 1)
+
     def _subtree_sums(self, f):
         r"""$\sum_{a \succeq l} f_a$ for each column $l$ of per-body vectors `f` (m, n, 6): (m, d, 6)."""
         return jnp.einsum("al,mai->mli", self.path, f)
@@ -150,7 +154,7 @@ class TreeMetricJet(AbstractMetricJet):
         $\delta V_a = (\partial_u \hat J_a)x - [W_a, V_a]$ (`_rates`' `W`, `dZ`): (m, n, 6) each."""
         V = self._twists(self.Z, X)
         p = jnp.einsum("aij,maj->mai", self.inertias, V)
-        dV = self._twists(dZ, jnp.concatenate([jnp.zeros_like(X[:, :6]), X[:, 6:]], 1))
+        dV = self._twists(dZ, self._shape_part(X))
         dV = dV - lie.bracket(W, V)
         return p, lie.coad_action(W, p) + jnp.einsum("aij,maj->mai", self.inertias, dV)
 
@@ -166,12 +170,12 @@ class TreeMetricJet(AbstractMetricJet):
         return self.along_applied(u, jnp.eye(self.metric.shape[0], dtype=self.metric.dtype))
 
     def along_applied(self, u, X):
-        return self._along_applied(X, *self._rates(u))
+        _, dZ, W = self._rates(u)
+        return self._along_applied(dZ, *self._momenta(W, dZ, X))
 
-    def _along_applied(self, X, W_columns, dZ, W, momenta=None):
+    def _along_applied(self, dZ, p, f):
         # Moving the joints by u moves body a by W_a and column j by ∂_u Z_j = [W_j, Z_j];
         # then with V = Ĵx and p = M̃V, (∂_u G)x = Σ_a Ĵ_aᵀ ∂_u p_a + [0; ∂_u Z_l · Π_l].
-        p, f = self._momenta(W, dZ, X) if momenta is None else momenta
         shape = jnp.einsum("il,mli->ml", self.Z, self._subtree_sums(f)) + jnp.einsum(
             "il,mli->ml", dZ, self._subtree_sums(p)
         )
@@ -193,14 +197,13 @@ class TreeMetricJet(AbstractMetricJet):
     def along_both(self, u, X, jet_along):
         # One `_rates` and `_momenta` for both (`forms_along` alone leaves the first to
         # XLA's dead-code elimination).
-        rates = self._rates(u)
-        W_columns, dZ, W = rates
-        p, f = momenta = self._momenta(W, dZ, X)
+        W_columns, dZ, W = self._rates(u)
+        p, f = self._momenta(W, dZ, X)
         ZN, N = self._column_brackets(X)
-        X_shape = jnp.concatenate([jnp.zeros_like(X[:, :6]), X[:, 6:]], 1)
-        dZN = lie.bracket(dZ.T, N) + lie.bracket(self.Z.T, self._parent_twists(dZ, X_shape))
+        dN = self._parent_twists(dZ, self._shape_part(X))
+        dZN = lie.bracket(dZ.T, N) + lie.bracket(self.Z.T, dN)
         if self.ball_dZ is not None:
             dZN = dZN - self.ball_dZ.applied_along(u, W_columns, X[:, 6:])
         Pi, dPi = self._subtree_sums(p), self._subtree_sums(f)
         half = -jnp.einsum("ikx,jkx->ijk", dZN, Pi) - jnp.einsum("ikx,jkx->ijk", ZN, dPi)
-        return self._along_applied(X, *rates, momenta), half + jnp.swapaxes(half, 0, 1)
+        return self._along_applied(dZ, p, f), half + jnp.swapaxes(half, 0, 1)
