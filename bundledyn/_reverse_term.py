@@ -19,13 +19,26 @@ from ._effects import Kinematics
 from ._scene import FloatingBase, Scene
 from ._term import KEPT_FIELD_OUTPUTS, AbstractSceneTerm, SceneTerm, scene_field
 
-__all__ = ["ReverseModeSceneTerm", "for_reverse_mode"]
+__all__ = [
+    "ReplayedSceneTerm",
+    "ReverseModeSceneTerm",
+    "for_replay",
+    "for_reverse_mode",
+]
 
 
 def _covered(scene: Scene) -> bool:
     """Whether the hand-derived reverse pass covers `scene`: a floating base and a free
     shape in the Galilean frame (any system with $d > 0$, any effects)."""
     return scene.free_shape and scene.frame is None and isinstance(scene.base, FloatingBase)
+
+
+def _check_covered(scene, name):
+    if not _covered(scene):
+        raise ValueError(
+            f"`{name}` needs a scene with a floating base and a free shape (d > 0) in the "
+            "Galilean frame; use `SceneTerm` for any other scene."
+        )
 
 
 def _field(scene, t, y):
@@ -83,8 +96,8 @@ def _state_vjp(scene, y, t, out, cotangents):
     return g_bar, jnp.concatenate([q_bar, U_bar, qdot_bar + xdot_bar[:d]])
 
 
-@_reverse_mode_field.def_bwd
-def _reverse_mode_field_bwd(out, grad_out, perturbed, scene__y, t):
+def _field_vjp(out, grad_out, perturbed, scene__y, t):
+    """The cotangents on `(scene, y)` of the field's outputs `out` at `(scene, y)`."""
     scene, y = scene__y
     cotangents = tuple(_materialized(c, o) for c, o in zip(grad_out, out, strict=True))
     if any(jtu.tree_leaves(perturbed[0])):
@@ -94,6 +107,26 @@ def _reverse_mode_field_bwd(out, grad_out, perturbed, scene__y, t):
         _, vjp = jax.vjp(lambda scene, y: _field(scene, t, y), scene, y)
         return vjp(cotangents)
     return eqx.filter(scene, lambda _: False), _state_vjp(scene, y, t, out, cotangents)
+
+
+_reverse_mode_field.def_bwd(_field_vjp)
+
+
+@eqx.filter_custom_vjp
+def _replayed_field(scene__y, t, out):
+    del scene__y, t
+    return out
+
+
+@_replayed_field.def_fwd
+def _replayed_field_fwd(perturbed, scene__y, t, out):
+    del perturbed, scene__y, t
+    return out, out
+
+
+@_replayed_field.def_bwd
+def _replayed_field_bwd(out, grad_out, perturbed, scene__y, t, _):
+    return _field_vjp(out, grad_out, perturbed, scene__y, t)
 
 
 @eqx.filter_jit
@@ -113,23 +146,52 @@ class ReverseModeSceneTerm(AbstractSceneTerm):
     scene: Scene
 
     def __check_init__(self):
-        if not _covered(self.scene):
-            raise ValueError(
-                "`ReverseModeSceneTerm` needs a scene with a floating base and a free shape "
-                "(d > 0) in the Galilean frame; use `SceneTerm` for any other scene."
-            )
+        _check_covered(self.scene, type(self).__name__)
 
     def body_vf(self, t, y, args):
         r"""$(\xi, \dot x)$, $\dot x = (\dot q, \dot U, \ddot q)$, as `SceneTerm.body_vf`."""
         return _reverse_mode_body_vf(self, t, y, args)
 
 
+class ReplayedSceneTerm(AbstractSceneTerm):
+    r"""`ReverseModeSceneTerm` whose field's values at the state it will be evaluated at
+    are known: it gives them back (`values`), and its reverse pass is the written-out one.
+
+    `StoredStepsAdjoint` keeps the field's values at a step's stages in its forward solve
+    and steps again with these terms in its reverse sweep (`AbstractRKMK.stage_step`), so
+    the field is not evaluated there. Only correct at that state: the values do not depend
+    on the state the term is given.
+
+    **Arguments:**
+
+    - `scene`: a `Scene` that `ReverseModeSceneTerm` takes.
+    - `values`: the field's values $(\xi, \dot x)$ there, as `SceneTerm.body_vf` gives them.
+    """
+
+    scene: Scene
+    values: tuple
+
+    def __check_init__(self):
+        _check_covered(self.scene, type(self).__name__)
+
+    def body_vf(self, t, y, args):
+        """The stored `values`, with the written-out reverse pass at `(scene, y)`."""
+        return _replayed_field((self.scene, y), t, jax.lax.stop_gradient(self.values))
+
+
+def _swapped(terms, swap):
+    def maybe(x):
+        return swap(x.scene) if isinstance(x, SceneTerm) and _covered(x.scene) else x
+
+    return jtu.tree_map(maybe, terms, is_leaf=lambda x: isinstance(x, SceneTerm))
+
+
 def for_reverse_mode(terms):
     """`terms` with every `SceneTerm` that `ReverseModeSceneTerm` covers replaced by it."""
+    return _swapped(terms, ReverseModeSceneTerm)
 
-    def swap(x):
-        if isinstance(x, SceneTerm) and _covered(x.scene):
-            return ReverseModeSceneTerm(x.scene)
-        return x
 
-    return jtu.tree_map(swap, terms, is_leaf=lambda x: isinstance(x, SceneTerm))
+def for_replay(terms, values):
+    """`terms` with its one covered `SceneTerm` replaced by a `ReplayedSceneTerm` giving
+    `values`."""
+    return _swapped(terms, lambda scene: ReplayedSceneTerm(scene, values))

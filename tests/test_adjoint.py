@@ -101,6 +101,11 @@ OPTIONS = {
 CHECKPOINTED = diffrax.RecursiveCheckpointAdjoint()
 STORED = bd.StoredStepsAdjoint()
 AUTODIFF_FIELD = bd.StoredStepsAdjoint(field_reverse="autodiff")
+# The chain's field values (a twist and x = (q, U, qdot), 6 + 12 float64) at three steps of
+# RKMK87 with its dense output (14 stages): the reverse sweep evaluates the other steps'
+# stages again, in blocks of two steps.
+KEPT_STEPS = 2
+REFILLED = bd.StoredStepsAdjoint(stage_memory=KEPT_STEPS * 14 * (6 + 12) * 8)
 
 
 def _assert_gradients_equal(ours, reference):
@@ -215,22 +220,75 @@ def test_past_its_memory_budget_the_adjoint_falls_back_to_checkpointing():
     _assert_gradients_equal(ours, _gradient(case, CHECKPOINTED, options)(_params(case)))
 
 
-def test_batched_gradients_of_members_taking_different_steps():
+@pytest.mark.parametrize("case, adjoint", [("rigid", STORED), ("chain", REFILLED)])
+def test_batched_gradients_of_members_taking_different_steps(case, adjoint):
     # Under vmap the reverse sweep runs to the longest member's steps; the others must
-    # discard the extra sweeps.
-    case, options = "rigid", "RKMK87 ts"
+    # discard the extra sweeps. On the chain the stage values of only a few steps are
+    # kept, so each member evaluates those of its other steps again, in its own blocks.
+    options = "RKMK87 ts"
     xi, inertia = _params(case)
     xis = jnp.stack([xi, 3.0 * xi])
-    loss = functools.partial(_loss, case, STORED, dict(OPTIONS[options]))
-    batched = jax.jit(jax.vmap(jax.grad(loss, has_aux=True), in_axes=((0, None),)))((xis, inertia))
-    accepted = batched[1][0]
+
+    def batched(adjoint):
+        loss = functools.partial(_loss, case, adjoint, dict(OPTIONS[options]))
+        grad = jax.vmap(jax.grad(loss, has_aux=True), in_axes=((0, None),))
+        return jax.jit(grad)((xis, inertia))
+
+    # Against diffrax's, batched too: a batched solve rounds otherwise than one member's
+    # alone (3e-10 of the gradient on the chain, either adjoint), the steps being the same.
+    ours, reference = batched(adjoint), batched(CHECKPOINTED)
+    accepted = ours[1][0]
     assert accepted[0] != accepted[1]
-    for i, x in enumerate(xis):
-        reference = _gradient(case, CHECKPOINTED, options)((x, inertia))
-        _assert_gradients_equal(jax.tree.map(lambda a, i=i: a[i], batched), reference)
+    assert case == "rigid" or min(accepted) > 2 * KEPT_STEPS  # blocks refilled
+    for i in range(len(xis)):
+        member = functools.partial(jax.tree.map, lambda a, i=i: a[i])
+        _assert_gradients_equal(member(ours), member(reference))
 
 
 def test_simulate_differentiates_its_lie_group_solvers_with_stored_steps():
     assert isinstance(default_adjoint(bd.RKMK87()), bd.StoredStepsAdjoint)
     assert isinstance(default_adjoint(bd.VariationalMidpoint()), bd.StoredStepsAdjoint)
     assert isinstance(default_adjoint(diffrax.Dopri8()), diffrax.RecursiveCheckpointAdjoint)
+
+
+def _counted_evaluations(adjoint, differentiate):
+    """How many times the chain's field is evaluated in a fixed-step solve of 20 RKMK4
+    steps, or in its gradient with respect to the initial twist."""
+    scene, state = CASES["chain"]()
+    count = []
+
+    def shape_force(t, q, qdot):
+        jax.debug.callback(lambda: count.append(1))
+        return -0.3 * qdot
+
+    scene = bd.Scene(scene.system, [bd.ShapeForce(shape_force)])
+
+    def loss(xi):
+        traj = bd.simulate(
+            scene,
+            bd.State(state.g, state.q, xi, state.qdot),
+            T1,
+            solver=bd.RKMK4(),
+            dt0=T1 / 20,
+            stepsize_controller=diffrax.ConstantStepSize(),
+            adjoint=adjoint,
+        )
+        return jnp.sum(traj.xi[-1] ** 2)
+
+    jax.block_until_ready((jax.grad(loss) if differentiate else loss)(state.xi))
+    jax.effects_barrier()
+    return len(count)
+
+
+def test_the_reverse_sweep_replays_the_fields_values_kept_by_the_forward_solve():
+    # The reverse sweep evaluates the field's forces once per stage, in its written-out
+    # pass, and the field itself only at the steps whose values were not kept.
+    forward = _counted_evaluations(STORED, differentiate=False)
+    assert forward == 20 * 4
+    assert _counted_evaluations(STORED, differentiate=True) - forward == forward
+    # RKMK4 has 4 stages: REFILLED keeps 2 * 14 // 4 = 7 steps, the other 13 evaluated again.
+    refilled = _counted_evaluations(REFILLED, differentiate=True) - forward
+    assert refilled == forward + (20 - KEPT_STEPS * 14 // 4) * 4
+    # Without kept values, every stage's field is evaluated again (at least).
+    unkept = bd.StoredStepsAdjoint(stage_memory=0)
+    assert _counted_evaluations(unkept, differentiate=True) - forward >= 2 * forward

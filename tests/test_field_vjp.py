@@ -15,7 +15,12 @@ import bundledyn as bd
 from bundledyn._dynamics import reference_accelerations
 from bundledyn._effects import Kinematics
 from bundledyn._geometry import connection
-from bundledyn._reverse_term import ReverseModeSceneTerm, for_reverse_mode
+from bundledyn._reverse_term import (
+    ReplayedSceneTerm,
+    ReverseModeSceneTerm,
+    for_replay,
+    for_reverse_mode,
+)
 from bundledyn._systems._ball_chart import ball_columns
 
 SHAPED = [name for name, make in SYSTEMS.items() if make().shape_dim > 0]
@@ -203,3 +208,32 @@ def test_only_scenes_it_covers_are_swapped():
     assert isinstance(for_reverse_mode(bd.SceneTerm(framed)), bd.SceneTerm)
     with pytest.raises(ValueError, match="floating base and a free shape"):
         ReverseModeSceneTerm(rigid)
+    values = (jnp.zeros(6), jnp.zeros(2 * chain.system.shape_dim + 6))
+    assert isinstance(for_replay(bd.SceneTerm(chain), values), ReplayedSceneTerm)
+    assert isinstance(for_replay(bd.SceneTerm(framed), values), bd.SceneTerm)
+    with pytest.raises(ValueError, match="floating base and a free shape"):
+        ReplayedSceneTerm(rigid, values)
+
+
+def test_the_replayed_field_gives_its_values_back_with_the_fields_reverse_pass():
+    # `StoredStepsAdjoint`'s reverse sweep: the values the forward solve kept, and the
+    # cotangents of the field at the state, on the state alone (the written-out pass) and
+    # on the scene's numbers too (autodiff's), as `SceneTerm`'s by autodiff.
+    scene = _scene("chain5")
+    y = _state(scene.system, "generic", jax.random.key(3))
+    values = bd.SceneTerm(scene).body_vf(0.4, y, None)
+    cotangent = jax.tree.map(lambda v: jnp.sin(jnp.arange(v.size, dtype=v.dtype)), values)
+
+    def pulled_back(term_of_scene):
+        def field(scene, y):
+            return term_of_scene(scene).body_vf(0.4, y, None)
+
+        out, vjp = jax.vjp(field, scene, y)
+        state_only = jax.vjp(lambda y: field(scene, y), y)[1](cotangent)
+        return out, vjp(cotangent), state_only
+
+    ours = pulled_back(lambda s: ReplayedSceneTerm(s, values))
+    reference = pulled_back(bd.SceneTerm)
+    for a, b in zip(jax.tree.leaves(ours), jax.tree.leaves(reference), strict=True):
+        scale = float(jnp.max(jnp.abs(b))) + 1.0
+        np.testing.assert_allclose(np.asarray(a), np.asarray(b), rtol=0, atol=1e-12 * scale)

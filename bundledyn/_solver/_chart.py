@@ -16,7 +16,7 @@ from .. import lie
 from .._linalg import dot
 from .._term import AbstractBodyTerm, AbstractSceneTerm, split, twist_of_tangent
 
-__all__ = ["body_field", "checked_start", "from_chart", "recharted"]
+__all__ = ["body_field", "body_term", "checked_start", "from_chart", "recharted"]
 
 NONFINITE_FIELD = (
     "bundledyn: the vector field is NaN or infinite at a finite state that the solver "
@@ -41,20 +41,29 @@ def from_chart(g0, rest0, treedef, omega, deltas):
     return jtu.tree_unflatten(treedef, [g, *rest])
 
 
+def body_term(terms):
+    """`(term, direction)`: the `AbstractBodyTerm` that `terms` is (direction 1) or that
+    the wrapper `diffeqsolve` puts around every term holds (a `term` and a time
+    `direction`); `(None, None)` for any other term. Other wrappers, such as the
+    adjoint's, change the state and are not looked into."""
+    if isinstance(terms, AbstractBodyTerm):
+        return terms, 1
+    inner, direction = getattr(terms, "term", None), getattr(terms, "direction", None)
+    if isinstance(inner, AbstractBodyTerm) and direction is not None:
+        return inner, direction
+    return None, None
+
+
 def body_field(terms, t, y, args, control=1.0):
     r"""The field of `terms` at `y` times `control`, with the pose's rate as the body twist
     $\xi$ (first leaf).
 
-    Read directly from an `AbstractBodyTerm`, also inside the wrapper that `diffeqsolve`
-    puts around every term (a `term` and a time `direction`, whose `vf` evaluates the term
-    at `direction * t`), and otherwise as $(g^{-1}\dot g)^\vee$. Other wrappers, such as
-    the adjoint's, change the state and are not looked into.
+    Read directly from an `AbstractBodyTerm` (`body_term`: the wrapper's `vf` evaluates
+    its term at `direction * t`), otherwise as $(g^{-1}\dot g)^\vee$.
     """
-    if isinstance(terms, AbstractBodyTerm):
-        return terms.prod(terms.body_vf(t, y, args), control)
-    inner, direction = getattr(terms, "term", None), getattr(terms, "direction", None)
-    if isinstance(inner, AbstractBodyTerm) and direction is not None:
-        return terms.prod(inner.body_vf(t * direction, y, args), control)
+    term, direction = body_term(terms)
+    if term is not None:
+        return terms.prod(term.body_vf(t * direction, y, args), control)
     g, _, treedef = split(y)
     gdot, *rest = jtu.tree_leaves(terms.prod(terms.vf(t, y, args), control))
     return jtu.tree_unflatten(treedef, [twist_of_tangent(g, gdot), *rest])

@@ -36,7 +36,7 @@ from .. import lie
 from .._linalg import dot
 from .._term import KEPT_FIELD_OUTPUTS, split
 from ._base import AbstractLieGroupSolver
-from ._chart import body_field, checked_start, from_chart, recharted
+from ._chart import body_field, body_term, checked_start, from_chart, recharted
 from ._interpolation import LieLocalInterpolation
 from ._tableau import LieButcherTableau, dopri5_tableau, dopri8_tableau, rk4_tableau
 
@@ -111,6 +111,48 @@ class AbstractRKMK(AbstractLieGroupSolver):
         return terms.vf(t0, y0, args)
 
     def step(self, terms, t0, t1, y0, args, solver_state, made_jump):
+        def field(i, t, y, control):
+            del i
+            return body_field(terms, t, y, args, control), None
+
+        y1, y_error, dense_info, _ = self._step(terms, t0, t1, y0, args, field)
+        return y1, y_error, dense_info, None, RESULTS.successful
+
+    def stage_step(self, terms, t0, t1, y0, args, *, stage_terms=None):
+        r"""`step`, also returning the field's values at the stages, with the field of
+        stage $i$ that of `stage_terms(i)` (default `terms`).
+
+        `bundledyn.StoredStepsAdjoint` keeps the values in its forward solve and steps
+        again in its reverse sweep with terms that give them back instead of evaluating
+        the field (`ReplayedSceneTerm`).
+
+        **Arguments:**
+
+        - `terms`, `t0`, `t1`, `y0`, `args`: as for `step`; `terms` is an
+          `AbstractBodyTerm` (or diffrax's wrapper of one).
+        - `stage_terms`: a function of the stage's index giving the body term evaluated at
+          that stage, with the structure of `terms`.
+
+        **Returns:**
+
+        `(y1, y_error, dense_info, values)`: the step as `step` gives it, and the field's
+        values $(\xi, \dot x)$ at the evaluated stages (before the control multiplies
+        them), each leaf stacked over the stages first.
+        """
+        if body_term(terms)[0] is None:
+            raise ValueError("`stage_step` needs an `AbstractBodyTerm`.")
+        stage_terms = (lambda i: terms) if stage_terms is None else stage_terms
+
+        def field(i, t, y, control):
+            term, direction = body_term(stage_terms(i))
+            values = term.body_vf(t * direction, y, args)
+            return terms.prod(values, control), values
+
+        return self._step(terms, t0, t1, y0, args, field)
+
+    def _step(self, terms, t0, t1, y0, args, field):
+        """The step, with `field(i, t, y, control)` giving stage `i`'s field (in the
+        form of `body_field`) and a value to stack over the stages."""
         y0 = recharted(terms, t0, y0)
         tab = self.tableau
         s = tab.num_stages
@@ -125,11 +167,12 @@ class AbstractRKMK(AbstractLieGroupSolver):
             omega = _combine(a[i], kappas)
             deltas = [_combine(a[i], k) for k in ks]
             yi = from_chart(g0, rest0, treedef, omega, deltas)
-            eta, *kx = jtu.tree_leaves(body_field(terms, t0 + c[i] * (t1 - t0), yi, args, control))
+            out, kept = field(i, t0 + c[i] * (t1 - t0), yi, control)
+            eta, *kx = jtu.tree_leaves(out)
             kappa = dot(lie.se3_dexp_inv(omega), eta.astype(omega.dtype))
             kappas = kappas.at[..., i].set(kappa)
             ks = [k.at[..., i].set(kxi.astype(k.dtype)) for k, kxi in zip(ks, kx, strict=True)]
-            return (kappas, ks), None
+            return (kappas, ks), kept
 
         kappas0 = jnp.zeros((6, s), dtype=g0.dtype)
         ks0 = [jnp.zeros((*jnp.shape(x), s), dtype=jnp.result_type(x)) for x in rest0]
@@ -138,7 +181,7 @@ class AbstractRKMK(AbstractLieGroupSolver):
         # A scan body needs no CSE barrier.
         stage = jax.checkpoint(stage, prevent_cse=False, policy=_KEPT)
         n = s if self.dense_output else tab.step_stages
-        (kappas, ks), _ = lax.scan(stage, (kappas0, ks0), jnp.arange(n), length=n)
+        (kappas, ks), values = lax.scan(stage, (kappas0, ks0), jnp.arange(n), length=n)
 
         b = jnp.asarray(tab.b_sol, dtype=dtype)
         y1 = from_chart(g0, rest0, treedef, _combine(b, kappas), [_combine(b, k) for k in ks])
@@ -159,7 +202,7 @@ class AbstractRKMK(AbstractLieGroupSolver):
             coeffs = [jnp.full((degree, *k.shape[:-1]), jnp.nan, k.dtype) for k in (kappas, *ks)]
         coeffs = jtu.tree_unflatten(treedef, coeffs)
         dense_info = dict(y0=y0, coeffs=coeffs)
-        return y1, y_error, dense_info, None, RESULTS.successful
+        return y1, y_error, dense_info, values
 
 
 class RKMK4(AbstractRKMK):
