@@ -133,26 +133,41 @@ def gradient_units(scene, state, t1, rtol):
     """Part 5c: samplers of where the gradient's time goes, per call in compiled loops
     (`loop_sampler`): the body field the RKMK stages evaluate (`bd.SceneTerm.body_vf`), one
     `RKMK87` step at the forward solve's mean step, and their VJPs as `simulate`'s default
-    adjoint takes them (through the field's written-out reverse pass where it covers the
-    scene, `ReverseModeSceneTerm`); with the solve's steps (accepted and rejected)."""
-    from bundledyn._reverse_term import for_reverse_mode
+    adjoint takes them: where the field's written-out reverse pass covers the scene, with
+    the field's values kept by the forward solve (`ReplayedSceneTerm`, so the field's VJP
+    is that pass alone), otherwise by autodiff; with the solve's steps (accepted and
+    rejected)."""
+    import jax
+
+    from bundledyn._reverse_term import for_replay
 
     options = simulate_options("RKMK87", "adaptive", rtol)
     steps = int(bd.simulate(scene, state, t1, **options).stats["num_steps"])
     term, solver = bd.SceneTerm(scene), bd.RKMK87(dense_output=False)
     y = term.encode(0.0, state)
+    h = t1 / steps
+    field_values = term.body_vf(0.0, y, None)
+    stage_values = solver.stage_step(term, 0.0, h, y, None)[3]
 
     def field(i, y, term=term):  # the twist as a 4×4 matrix, so that the loop can feed it back
         xi, xdot = term.body_vf(0.0, y, None)
         return bd.lie.se3_hat(xi), xdot
 
-    def step(i, y, term=term):
-        return solver.step(term, 0.0, t1 / steps, y, None, None, False)[0]
+    def step(i, y):
+        return solver.step(term, 0.0, h, y, None, None, False)[0]
 
-    def reverse(fn):
-        return vjp_unit(ft.partial(fn, term=for_reverse_mode(term)))
+    def replayed_step(i, y):
+        def stage_terms(k):
+            return for_replay(term, jax.tree.map(lambda v: v[k], stage_values))
 
-    units = {"field": field, "field_vjp": reverse(field), "step": step, "step_vjp": reverse(step)}
+        return solver.stage_step(term, 0.0, h, y, None, stage_terms=stage_terms)[0]
+
+    units = {
+        "field": field,
+        "field_vjp": vjp_unit(ft.partial(field, term=for_replay(term, field_values))),
+        "step": step,
+        "step_vjp": vjp_unit(replayed_step),
+    }
     calls = {"field": LOOP_EVALS, "step": LOOP_EVALS // 10}
     samplers = {k: loop_sampler(fn, y, calls[k.split("_")[0]]) for k, fn in units.items()}
     return samplers, {
