@@ -162,8 +162,9 @@ def gradient_text(report):
         f"(forward: ms, median): for {adjoints}; “–”: the adjoint failed (below) or no "
         "horizon is predictable. VJPs in compiled loops: the body field the stages "
         "evaluate (`SceneTerm.body_vf`) and one RKMK87 step at the solve's mean step, "
-        "each over itself, their VJPs as the default adjoint takes them (through the "
-        "field's written-out reverse pass).",
+        "each over itself, their VJPs as the default adjoint takes them (the field's "
+        "written-out reverse pass, the field's values at the stages kept by the forward "
+        "solve, so that the field's VJP is that pass alone).",
         "",
     ]
 

@@ -99,12 +99,12 @@ def gradient_profile_lines(report):
         f"per step {steps * med['step'] * 1e3:.1f} ms, against {forward * 1e3:.1f} ms "
         f"measured. The forward solve and {steps} step VJPs ({vjps * 1e3:.0f} ms) account for "
         f"{(forward + vjps) / grad:.0%} of the gradient's {grad * 1e3:.0f} ms{rest}. "
-        "A step's VJP runs the step forward again from its stored start (each stage's field "
-        "once: a stage keeps the field's outputs for its written-out reverse pass) and "
-        "transposes it. A gradient within 4× of the forward solve would "
+        "A step's VJP runs the step's stage maps forward again from its stored start, with "
+        "the field's values at the stages kept by the forward solve (the field is not "
+        "evaluated again), and transposes it. A gradient within 4× of the forward solve would "
         f"need the {steps} step VJPs within three forward solves, each within "
         f"{3 * forward / (steps * med['step']):.1f}× the step; it costs "
         f"{med['step_vjp'] / med['step']:.1f}×, of which the {p['stages']} stages' field VJPs "
-        f"(each {med['field_vjp'] / med['field']:.1f}× the field) take "
+        f"(each {med['field_vjp'] / med['field']:.1f}× the field, its written-out pass alone) take "
         f"{p['stages'] * med['field_vjp'] / med['step_vjp']:.0%}.",
     ]

@@ -75,8 +75,10 @@ class StoredStepsAdjoint(diffrax.AbstractAdjoint):
     as fit in `stage_memory` bytes (`StageRecorder`). The reverse sweep then steps with
     terms that give those values back (`ReplayedSceneTerm`) and evaluates no field, except
     at the steps whose values were not kept: it evaluates those again block by block, in
-    the forward pass alone. On a family of trees this cut the gradient's time by 8-19 %
-    (`benchmarks/`).
+    the forward pass alone. On a family of trees this cut the gradient's time by 0.5-30 %
+    (median 18 %), each member's ratio to autodiff's baseline in two runs of
+    `benchmarks/family`; least on the shortest solves (24 steps), whose buffers as long
+    as `max_steps` weigh more.
 
     Memory: one state per possible step, `max_steps` of them. Past `max_memory` bytes, or
     where it does not apply (a solver with a state of its own, several event conditions,
@@ -100,10 +102,10 @@ class StoredStepsAdjoint(diffrax.AbstractAdjoint):
       `"hand-derived"` (default), the field's reverse pass written out
       (`ReverseModeSceneTerm`: a floating base and a free shape in the Galilean frame;
       other scenes keep autodiff), or `"autodiff"`. The same gradients either way. The
-      written-out pass needs only the field's inputs and outputs, so the step keeps those
-      instead of evaluating each stage a second time; with respect to the state (`y0`) the
-      gradient then takes 0.55-0.84x autodiff's time on a family of trees (median 0.59,
-      `benchmarks/`). Where the scene's numbers are differentiated too, both transpose the
+      written-out pass needs only the field's inputs and outputs, so the reverse sweep
+      replays the field's values (above) instead of evaluating it again; with respect to
+      the state (`y0`) the gradient then takes 0.44-0.71x autodiff's time on a family of
+      trees (median 0.48, `benchmarks/`). Where the scene's numbers are differentiated too, both transpose the
       field by autodiff, and `"autodiff"` is a few percent faster.
     """
 
