@@ -74,7 +74,8 @@ def gradient_profile_lines(report):
     forward, grad = g["forward"]["median"], g["grad"]["median"]
     steps, vjps = p["steps"], p["steps"] * med["step_vjp"]
     rest = (
-        ": the rest is diffrax recomputing steps from its checkpoints"
+        ": the rest is the adjoint's own, recording the steps in the forward solve (in "
+        "buffers as long as `max_steps`) and its sweep's bookkeeping"
         if forward + vjps < grad
         else " (alone, a step's VJP costs more than inside the solve)"
     )
