@@ -101,11 +101,19 @@ OPTIONS = {
 CHECKPOINTED = diffrax.RecursiveCheckpointAdjoint()
 STORED = bd.StoredStepsAdjoint()
 AUTODIFF_FIELD = bd.StoredStepsAdjoint(field_reverse="autodiff")
-# The chain's field values (a twist and x = (q, U, qdot), 6 + 12 float64) at three steps of
-# RKMK87 with its dense output (14 stages): the reverse sweep evaluates the other steps'
-# stages again, in blocks of two steps.
+
+
+def _kept_bytes(stages):
+    """What `StoredStepsAdjoint` keeps of a step on the chain: its start state (a pose and
+    x = (q, U, qdot), 16 + 12 float64) and the field's values at its stages (a twist and
+    the rate of x, 6 + 12 float64 each)."""
+    return (16 + 12 + stages * (6 + 12)) * 8
+
+
+# Two steps of RKMK87 with its dense output (14 stages): the reverse sweep steps the others
+# again, in blocks of two steps.
 KEPT_STEPS = 2
-REFILLED = bd.StoredStepsAdjoint(stage_memory=KEPT_STEPS * 14 * (6 + 12) * 8)
+REFILLED = bd.StoredStepsAdjoint(stage_memory=KEPT_STEPS * _kept_bytes(14))
 
 
 def _assert_gradients_equal(ours, reference):
@@ -282,13 +290,15 @@ def _counted_evaluations(adjoint, differentiate):
 
 def test_the_reverse_sweep_replays_the_fields_values_kept_by_the_forward_solve():
     # The reverse sweep evaluates the field's forces once per stage, in its written-out
-    # pass, and the field itself only at the steps whose values were not kept.
+    # pass, and the field itself only at the steps that were not kept, stepped again.
     forward = _counted_evaluations(STORED, differentiate=False)
     assert forward == 20 * 4
     assert _counted_evaluations(STORED, differentiate=True) - forward == forward
-    # RKMK4 has 4 stages: REFILLED keeps 2 * 14 // 4 = 7 steps, the other 13 evaluated again.
+    # REFILLED keeps 5 of the 20 RKMK4 steps; the others are stepped again.
+    kept = REFILLED.stage_memory // _kept_bytes(4)
+    assert kept == 5
     refilled = _counted_evaluations(REFILLED, differentiate=True) - forward
-    assert refilled == forward + (20 - KEPT_STEPS * 14 // 4) * 4
+    assert refilled == forward + (20 - kept) * 4
     # Without kept values, every stage's field is evaluated again (at least).
     unkept = bd.StoredStepsAdjoint(stage_memory=0)
     assert _counted_evaluations(unkept, differentiate=True) - forward >= 2 * forward

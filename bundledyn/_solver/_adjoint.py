@@ -71,16 +71,18 @@ class StoredStepsAdjoint(diffrax.AbstractAdjoint):
     solvers.
 
     With an `AbstractRKMK` solver and a scene the written-out pass covers, the forward
-    solve also keeps the field's values at the stages of its last accepted steps, as many
-    as fit in `stage_memory` bytes (`StageRecorder`). The reverse sweep then steps with
-    terms that give those values back (`ReplayedSceneTerm`) and evaluates no field, except
-    at the steps whose values were not kept: it evaluates those again block by block, in
-    the forward pass alone. On a family of trees this cut the gradient's time by 0.5-30 %
-    (median 18 %), each member's ratio to autodiff's baseline in two runs of
-    `benchmarks/family`; least on the shortest solves (24 steps), whose buffers as long
-    as `max_steps` weigh more.
+    solve instead keeps the start states and the field's values at the stages of its last
+    accepted steps, as many as fit in `stage_memory` bytes, and the start state of every
+    block of that many steps (`StageRecorder`). The reverse sweep then steps with terms
+    that give those values back (`ReplayedSceneTerm`) and evaluates no field, except at
+    the steps that were not kept: it steps those again from their block's start, block by
+    block, in the forward pass alone. On a family of trees this cut the gradient's time by
+    0.5-30 % (median 18 %), each member's ratio to autodiff's baseline in two runs of
+    `benchmarks/family`; least on the shortest solves (24 steps), where costs that do not
+    grow with the steps weigh more.
 
-    Memory: one state per possible step, `max_steps` of them. Past `max_memory` bytes, or
+    Memory: one state per possible step, `max_steps` of them (with the replayed stages,
+    one time per possible step, and the states as above). Past `max_memory` bytes, or
     where it does not apply (a solver with a state of its own, several event conditions,
     `max_steps=None`, stochastic terms), the solve is differentiated by `fallback`.
 
@@ -93,8 +95,8 @@ class StoredStepsAdjoint(diffrax.AbstractAdjoint):
     **Arguments:**
 
     - `max_memory`: the most bytes the stored states may take (default 1 GiB).
-    - `stage_memory`: the most bytes the kept stage values may take (default 2 MiB, the
-      values of 438 steps of `RKMK87` on gymnasium's humanoid; 0 keeps none). Under
+    - `stage_memory`: the most bytes the kept start states and stage values may take
+      (default 2 MiB: 400 steps of `RKMK87` on gymnasium's humanoid; 0 keeps none). Under
       `vmap` each member keeps its own.
     - `fallback`: the adjoint used past the budget or where this one does not apply
       (default `diffrax.RecursiveCheckpointAdjoint()`, binomial checkpointing).
@@ -148,7 +150,8 @@ class StoredStepsAdjoint(diffrax.AbstractAdjoint):
             or not isinstance(for_reverse_mode(term), ReverseModeSceneTerm)
         ):
             return 0
-        per_step = nbytes(stage_values_shape(solver, terms, init_state.tprev, init_state.y, args))
+        values = stage_values_shape(solver, terms, init_state.tprev, init_state.y, args)
+        per_step = nbytes(values) + nbytes(init_state.y)
         return min(self.stage_memory // per_step, max_steps)
 
     def loop(self, **kwargs):
@@ -190,34 +193,48 @@ def _only_saves_differentiable(final_state):
     return eqx.tree_at(saves, final_state, kept)
 
 
-def _record_state(init_state, max_steps):
-    """An empty buffer for the states at the steps' ends, shaped as diffrax's own."""
-    y = init_state.y
+def _time(t, y, args):
+    del y, args
+    return t
+
+
+def _state(t, y, args):
+    del t, args
+    return y
+
+
+def _record_state(init_state, max_steps, y):
+    """An empty buffer for the steps' ends and `y` there, shaped as diffrax's own."""
     return SaveState(
         saveat_ts_index=0,
         ts=jnp.full(max_steps, jnp.inf, dtype=jnp.result_type(init_state.tprev)),
-        ys=jtu.tree_map(lambda x: jnp.full((max_steps, *x.shape), jnp.inf, x.dtype), y),
+        ys=jtu.tree_map(
+            lambda x: jnp.full((max_steps, *jnp.shape(x)), jnp.inf, jnp.result_type(x)), y
+        ),
         save_index=0,
     )
 
 
 def _forward(y__args__terms, *, loop, saveat, init_state, max_steps, record, capacity, **kwargs):
-    """diffrax's loop, undifferentiated, with the steps' end states recorded besides where
-    `record` (reverse mode needs them; a solve that is not differentiated does not), and
-    then also the last `capacity` steps' stage values (`StageRecorder`)."""
+    """diffrax's loop, undifferentiated, with the steps' ends and end states recorded
+    besides where `record` (reverse mode needs them; a solve that is not differentiated
+    does not). With a `capacity`, the states are kept by `StageRecorder` instead, with the
+    field's values at the last `capacity` steps' stages, and only the ends are recorded."""
     y, args, terms = y__args__terms
     init_state = eqx.tree_at(lambda s: s.y, init_state, y)
     if record:
-        steps = diffrax.SubSaveAt(steps=True)
+        fn, like = (_time, init_state.tprev) if capacity else (_state, y)
+        steps = diffrax.SubSaveAt(steps=True, fn=fn)
         saveat = eqx.tree_at(lambda s: s.subs, saveat, (saveat.subs, steps))
         init_state = eqx.tree_at(
             lambda s: s.save_state,
             init_state,
-            (init_state.save_state, _record_state(init_state, max_steps)),
+            (init_state.save_state, _record_state(init_state, max_steps, like)),
         )
     if record and capacity:
-        kwargs["solver"] = StageRecorder(kwargs["solver"], capacity)
-        recorder_state = kwargs["solver"].init(terms, init_state.tprev, None, y, args)
+        checkpoints = -(-max_steps // capacity)
+        kwargs["solver"] = StageRecorder(kwargs["solver"], capacity, checkpoints)
+        recorder_state = kwargs["solver"].init(terms, init_state.tprev, init_state.tnext, y, args)
         init_state = eqx.tree_at(
             lambda s: s.solver_state, init_state, recorder_state, is_leaf=lambda x: x is None
         )
@@ -237,7 +254,7 @@ def _forward(y__args__terms, *, loop, saveat, init_state, max_steps, record, cap
     final_state = eqx.tree_at(lambda s: s.save_state, final_state, user_saves)
     if not capacity:
         return final_state, aux_stats, steps, None
-    _, stages = final_state.solver_state
+    stages = final_state.solver_state
     final_state = eqx.tree_at(lambda s: s.solver_state, final_state, None)
     return final_state, aux_stats, steps, stages
 
@@ -283,10 +300,14 @@ class _Steps(eqx.Module):
     def ends(self):
         return self.end(jnp.arange(self.record.ts.shape[0]))
 
+    def start_time(self, k):
+        """$t_k$."""
+        return jnp.where(k == 0, self.t0, self.record.ts[jnp.maximum(k - 1, 0)])
+
     def start(self, k):
-        """$(t_k, y_k)$."""
+        """$(t_k, y_k)$, where the record holds the states."""
         previous = jnp.maximum(k - 1, 0)
-        t = jnp.where(k == 0, self.t0, self.record.ts[previous])
+        t = self.start_time(k)
         y = jtu.tree_map(
             lambda y0, ys: jnp.where(k == 0, y0, ys[previous]), self.y0, self.record.ys
         )
@@ -371,6 +392,7 @@ class _Problem(eqx.Module):
         args = eqx.combine(diff_args, self.static_args)
         terms = eqx.combine(diff_terms, self.static_terms)
         if values is not None:
+            assert isinstance(self.solver, AbstractRKMK)  # as `_stage_capacity` requires
 
             def replayed(i):
                 return for_replay(terms, jtu.tree_map(lambda v: v[i], values))
@@ -384,11 +406,13 @@ class _Problem(eqx.Module):
         y1, _, dense_info, _, _ = self.solver.step(terms, ta, tb, y, args, None, False)
         return y1, dense_info
 
-    def stage_values(self, y, diff_args, diff_terms, ta, tb):
-        """The field's values at the stages of the step from `y`."""
+    def stage_step(self, y, diff_args, diff_terms, ta, tb):
+        """The step from `y` (the state it ends at) and the field's values at its stages."""
         args = eqx.combine(diff_args, self.static_args)
         terms = eqx.combine(diff_terms, self.static_terms)
-        return self.solver.stage_step(terms, ta, tb, y, args)[3]
+        assert isinstance(self.solver, AbstractRKMK)  # as `_stage_capacity` requires
+        y1, _, _, values = self.solver.stage_step(terms, ta, tb, y, args)
+        return y1, values
 
     def interpolate(self, dense_info, ta, tb, t):
         return self.solver.interpolation_cls(t0=ta, t1=tb, **dense_info).evaluate(t)
@@ -532,11 +556,14 @@ def _stored_steps_loop_bwd(
         )
     )
 
-    def reverse_step(carry, stages=None):
+    def reverse_step(carry, kept=None):
         k, ct_y, ct_args, ct_terms = carry
         j = jnp.maximum(k, 0)  # members of a batch already done repeat step 0, discarded
-        (ta, y_start), tb = steps.start(j), steps.end(j)
-        values = None if stages is None else slot_values(stages, j, capacity)
+        ta, tb = steps.start_time(j), steps.end(j)
+        if kept is None:
+            values, y_start = None, steps.start(j)[1]
+        else:
+            values, y_start = (slot_values(b, j, capacity) for b in (kept.values, kept.states))
         (y1, dense_info), vjp = jax.vjp(
             lambda y, a, tm: problem.step(y, a, tm, ta, tb, values),
             y_start,
@@ -569,11 +596,11 @@ def _stored_steps_loop_bwd(
         carry = lax.while_loop(lambda c: c[0] >= 0, reverse_step, carry)
     else:
 
-        def refilled(i):
-            (ta, y), tb = steps.start(i), steps.end(i)
-            return problem.stage_values(y, diff_args, diff_terms, ta, tb)
+        def stepped(i, y):
+            ta, tb = steps.start_time(i), steps.end(i)
+            return problem.stage_step(y, diff_args, diff_terms, ta, tb)
 
-        carry = _replayed_sweep(reverse_step, refilled, carry, stages, steps.n, capacity)
+        carry = _replayed_sweep(reverse_step, stepped, carry, stages, steps.n, capacity)
     _, ct_y0, ct_args, ct_terms = carry
     for sub, (_, g_ys), e in zip(subs, grads, entries, strict=True):
         d_y0, d_args = _initial_cotangents(problem, sub.fn, e, g_ys, y0, diff_args, t0)
@@ -581,37 +608,42 @@ def _stored_steps_loop_bwd(
     return ct_y0, ct_args, ct_terms
 
 
-def _replayed_sweep(reverse_step, refilled, carry, stages, n, capacity):
-    r"""The reverse sweep over steps $n - 1, \dots, 0$ by `reverse_step` given each step's
-    stage values, in blocks of `capacity` steps ($[c\,m, (c + 1)\,m)$, last block first).
+def _replayed_sweep(reverse_step, stepped, carry, kept, n, capacity):
+    r"""The reverse sweep over steps $n - 1, \dots, 0$ by `reverse_step` given what is kept
+    for each (`Kept`), in blocks of `capacity` steps ($[c\,m, (c + 1)\,m)$, last first).
 
-    The forward solve kept the last `capacity` steps' values (`StageRecorder`); before a
-    block is swept, the values of its steps that were not kept are evaluated again
-    (`refilled(i)`, step $i$'s field at its stages, in the forward pass alone) into the
-    slots of the steps already swept. A solve of at most `capacity` steps is one block that
-    evaluates no field. Every loop runs its own number of times, so under `vmap` no
-    member evaluates what it does not need.
+    The forward solve kept the last `capacity` steps' start states and stage values, and
+    the start state of every block. Before a block is swept, its steps that were not kept
+    are stepped again from the block's start (`stepped(i, y)`: step $i$ from $y$, giving
+    the state it ends at and the field's values at its stages, in the forward pass alone)
+    into the slots of the steps already swept. A solve of at most `capacity` steps is one
+    block and evaluates no field. Every loop runs its own number of times, so under `vmap`
+    no member evaluates what it does not need.
     """
 
     def block(state):
-        c, stages, carry = state
+        c, kept, carry = state
         lo = jnp.maximum(c * capacity, 0)
         unkept = jnp.minimum((c + 1) * capacity, n - capacity)
 
-        def refill(i__stages):
-            i, stages = i__stages
-            return i + 1, with_values(stages, i, capacity, refilled(i))
+        def refill(state):
+            i, y, kept = state
+            y1, values = stepped(i, y)
+            values = with_values(kept.values, i, capacity, values)
+            states = with_values(kept.states, i, capacity, y)
+            return i + 1, y1, eqx.tree_at(lambda k: (k.values, k.states), kept, (values, states))
 
-        _, stages = lax.while_loop(lambda s: s[0] < unkept, refill, (lo, stages))
+        start = jtu.tree_map(lambda b: b[jnp.maximum(c, 0)], kept.checkpoints)
+        _, _, kept = lax.while_loop(lambda s: s[0] < unkept, refill, (lo, start, kept))
         carry = lax.while_loop(
             lambda carry: (carry[0] >= lo) & (carry[0] >= 0),
-            lambda carry: reverse_step(carry, stages),
+            lambda carry: reverse_step(carry, kept),
             carry,
         )
-        return c - 1, stages, carry
+        return c - 1, kept, carry
 
     last = jnp.floor_divide(n - 1, capacity)
-    _, _, carry = lax.while_loop(lambda s: s[0] >= 0, block, (last, stages, carry))
+    _, _, carry = lax.while_loop(lambda s: s[0] >= 0, block, (last, kept, carry))
     return carry
 
 

@@ -145,6 +145,7 @@ class AbstractRKMK(AbstractLieGroupSolver):
 
         def field(i, t, y, control):
             term, direction = body_term(stage_terms(i))
+            assert term is not None  # `stage_terms` gives terms structured as `terms`
             values = term.body_vf(t * direction, y, args)
             return terms.prod(values, control), values
 

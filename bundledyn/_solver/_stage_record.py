@@ -1,21 +1,23 @@
 r"""A Lie-group solver that also keeps the field's values at its stages, for reverse mode.
 
-`StoredStepsAdjoint` steps a solve with it in its forward pass: the values of the last
-`capacity` accepted steps are then at hand in its reverse sweep, which steps again with
-terms that give them back (`ReplayedSceneTerm`) instead of evaluating the field a second
-time.
+`StoredStepsAdjoint` steps a solve with it in its forward pass: the start states and
+stage values of the last `capacity` accepted steps are then at hand in its reverse sweep,
+which steps again with terms that give the values back (`ReplayedSceneTerm`) instead of
+evaluating the field a second time, and the other steps can be stepped again from the
+checkpoints it keeps.
 """
 
 import math
 
 import diffrax
 import equinox as eqx
+import jax
 import jax.numpy as jnp
 import jax.tree_util as jtu
 
 from ._rkmk import AbstractRKMK
 
-__all__ = ["StageRecorder", "nbytes", "slot_values", "stage_values_shape", "with_values"]
+__all__ = ["Kept", "StageRecorder", "nbytes", "slot_values", "stage_values_shape", "with_values"]
 
 
 def stage_values_shape(solver: AbstractRKMK, terms, t0, y0, args):
@@ -25,21 +27,37 @@ def stage_values_shape(solver: AbstractRKMK, terms, t0, y0, args):
     )
 
 
+class Kept(eqx.Module):
+    r"""What `StageRecorder` keeps: for the last `capacity` accepted steps, each step's
+    start state and the field's values at its stages, step $k$ in slot $k \bmod$
+    `capacity`; and the start state of every `capacity`-th step, step $c\,$`capacity` in
+    `checkpoints[c]`, from which the others can be stepped again."""
+
+    count: jax.Array
+    values: object
+    states: object
+    checkpoints: object
+
+
 class StageRecorder(diffrax.AbstractSolver):
-    r"""`solver`, whose state keeps the field's values at the stages of the last
-    `capacity` accepted steps: those of accepted step $k$ in slot $k \bmod$ `capacity`.
+    r"""`solver`, whose state (`Kept`) keeps what the reverse sweep of
+    `StoredStepsAdjoint` steps again from: the start states and the field's values at the
+    stages of the last `capacity` accepted steps, and the start states of every
+    `capacity`-th step.
 
     A rejected step writes the slot of the step that replaces it, and diffrax keeps the
-    state of accepted steps only, so the slot holds the accepted step's values.
+    state of accepted steps only, so a slot holds the accepted step's.
 
     **Arguments:**
 
     - `solver`: the `AbstractRKMK` method (its own state is `None`).
-    - `capacity`: how many steps' values are kept.
+    - `capacity`: how many steps' values and states are kept.
+    - `checkpoints`: how many checkpoints are kept (`max_steps / capacity`, rounded up).
     """
 
     solver: AbstractRKMK
     capacity: int = eqx.field(static=True)
+    checkpoints: int = eqx.field(static=True)
 
     @property
     def term_structure(self):
@@ -60,24 +78,41 @@ class StageRecorder(diffrax.AbstractSolver):
 
     def init(self, terms, t0, t1, y0, args):
         values = stage_values_shape(self.solver, terms, t0, y0, args)
-        buffer = jtu.tree_map(lambda v: jnp.zeros((self.capacity, *v.shape), v.dtype), values)
-        return jnp.array(0), buffer
+
+        def buffer(tree, length):
+            return jtu.tree_map(lambda v: jnp.zeros((length, *jnp.shape(v)), v.dtype), tree)
+
+        return Kept(
+            jnp.array(0),
+            buffer(values, self.capacity),
+            buffer(y0, self.capacity),
+            buffer(y0, self.checkpoints),
+        )
 
     def step(self, terms, t0, t1, y0, args, solver_state, made_jump):
         del made_jump
-        count, buffer = solver_state
+        kept, k = solver_state, solver_state.count
         y1, y_error, dense_info, values = self.solver.stage_step(terms, t0, t1, y0, args)
-        buffer = with_values(buffer, count, self.capacity, values)
-        return y1, y_error, dense_info, (count + 1, buffer), diffrax.RESULTS.successful
+        c = k // self.capacity
+        checkpoint = jtu.tree_map(
+            lambda old, y: jnp.where(k % self.capacity == 0, y, old[c]), kept.checkpoints, y0
+        )
+        kept = Kept(
+            k + 1,
+            with_values(kept.values, k, self.capacity, values),
+            with_values(kept.states, k, self.capacity, y0),
+            jtu.tree_map(lambda b, y: b.at[c].set(y), kept.checkpoints, checkpoint),
+        )
+        return y1, y_error, dense_info, kept, diffrax.RESULTS.successful
 
 
 def slot_values(buffer, k, capacity):
-    """The stage values kept for step `k` (`StageRecorder`)."""
+    """What is kept for step `k` in `buffer` (`Kept.values` or `Kept.states`)."""
     return jtu.tree_map(lambda b: b[k % capacity], buffer)
 
 
 def with_values(buffer, k, capacity, values):
-    """`buffer` with `values` in step `k`'s slot."""
+    """`buffer` with `values` in step `k`'s slot (`Kept.values` or `Kept.states`)."""
     return jtu.tree_map(lambda b, v: b.at[k % capacity].set(v), buffer, values)
 
 
