@@ -77,7 +77,7 @@ class StoredStepsAdjoint(diffrax.AbstractAdjoint):
     that give those values back (`ReplayedSceneTerm`) and evaluates no field, except at
     the steps that were not kept: it steps those again from their block's start, block by
     block, in the forward pass alone. On a family of trees this cut the gradient's time by
-    0.5-30 % (median 18 %), each member's ratio to autodiff's baseline in two runs of
+    12-31 % (median 20 %), each member's ratio to autodiff's baseline in two runs of
     `benchmarks/family`; least on the shortest solves (24 steps), where costs that do not
     grow with the steps weigh more.
 
@@ -106,8 +106,8 @@ class StoredStepsAdjoint(diffrax.AbstractAdjoint):
       other scenes keep autodiff), or `"autodiff"`. The same gradients either way. The
       written-out pass needs only the field's inputs and outputs, so the reverse sweep
       replays the field's values (above) instead of evaluating it again; with respect to
-      the state (`y0`) the gradient then takes 0.44-0.71x autodiff's time on a family of
-      trees (median 0.48, `benchmarks/`). Where the scene's numbers are differentiated too, both transpose the
+      the state (`y0`) the gradient then takes 0.43-0.63x autodiff's time on a family of
+      trees (median 0.47, `benchmarks/`). Where the scene's numbers are differentiated too, both transpose the
       field by autodiff, and `"autodiff"` is a few percent faster.
     """
 
