@@ -71,13 +71,11 @@ def body_field(terms, t, y, args, control=1.0):
 
 def recharted(terms, t, y):
     r"""`y` in the coordinates its scene steps best in (`SceneTerm.recharted`: ball joints'
-    rotation vectors back in $|\varphi| \le \pi$), the term looked for as `body_field`
-    looks for it; `y` itself for any other term."""
-    if isinstance(terms, AbstractSceneTerm):
-        return terms.recharted(t, y)
-    inner, direction = getattr(terms, "term", None), getattr(terms, "direction", None)
-    if isinstance(inner, AbstractSceneTerm) and direction is not None:
-        return inner.recharted(t * direction, y)
+    rotation vectors back in $|\varphi| \le \pi$), the term looked for by `body_term`; `y`
+    itself for any other term."""
+    term, direction = body_term(terms)
+    if isinstance(term, AbstractSceneTerm):
+        return term.recharted(t * direction, y)
     return y
 
 
