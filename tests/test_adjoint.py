@@ -69,8 +69,11 @@ def _gradient(case, adjoint, options_key):
     return jax.jit(jax.grad(functools.partial(_loss, case, adjoint, options), has_aux=True))
 
 
+CROSSING = 0.15  # the chain's section frame crosses it after 4 steps, or 6 at a third the speed
+
+
 def _crossing(t, y, args, **kwargs):
-    return y[0][0, 3] - 0.05  # the section frame's x crosses 5 cm
+    return y[0][0, 3] - CROSSING  # the section frame's x
 
 
 def _past(t, y, args, **kwargs):
@@ -130,7 +133,7 @@ def _assert_gradients_equal(ours, reference):
 
 @pytest.mark.parametrize(
     "case, options",
-    [("rigid", key) for key in OPTIONS if key != "RKMK87 event"] + [("chain", "RKMK87 event")],
+    [("rigid", key) for key in OPTIONS if key != "RKMK87 event"],
 )
 def test_stored_steps_gradients_equal_checkpointed_ones(case, options):
     params = _params(case)
@@ -167,12 +170,11 @@ def test_through_a_chains_field_gradients_equal_checkpointed_ones(adjoint):
 @pytest.mark.parametrize("case, options", [("rigid", "RKMK87 ts"), ("chain, effects", "RKMK4 ts")])
 def test_with_the_scene_held_constant_gradients_equal_checkpointed_ones(case, options):
     # On the chain, the field's written-out reverse pass alone (no autodiff for the scene).
-    # (That pass at single states: tests/test_field_vjp.py.)
-    xi = _params(case)[0]
-    _assert_gradients_equal(
-        _twist_gradient(case, STORED, options)(xi),
-        _twist_gradient(case, CHECKPOINTED, options)(xi),
-    )
+    # (That pass at single states: tests/test_field_vjp.py.) diffrax's gradient with
+    # respect to the twist is the twist's part of its gradient with respect to both.
+    params = _params(case)
+    (reference, _), steps = _gradient(case, CHECKPOINTED, options)(params)
+    _assert_gradients_equal(_twist_gradient(case, STORED, options)(params[0]), (reference, steps))
 
 
 def test_a_derivative_in_the_horizon_is_refused_naming_the_adjoint_that_gives_it():
@@ -203,7 +205,7 @@ def test_the_event_stops_the_solve_at_its_root():
     last = int(jnp.argmax(jnp.where(jnp.isfinite(traj.ts), traj.ts, -jnp.inf)))
     assert 0.0 < float(traj.ts[last]) < T1
     assert not jnp.any(traj.ts[last] == TS)
-    np.testing.assert_allclose(float(traj.g[last, 0, 3]), 0.05, atol=1e-12)
+    np.testing.assert_allclose(float(traj.g[last, 0, 3]), CROSSING, atol=1e-12)
 
 
 def test_past_its_memory_budget_the_adjoint_falls_back_to_checkpointing():
@@ -228,12 +230,16 @@ def test_past_its_memory_budget_the_adjoint_falls_back_to_checkpointing():
     _assert_gradients_equal(ours, _gradient(case, CHECKPOINTED, options)(_params(case)))
 
 
-@pytest.mark.parametrize("case, adjoint", [("rigid", STORED), ("chain", REFILLED)])
-def test_batched_gradients_of_members_taking_different_steps(case, adjoint):
+@pytest.mark.parametrize(
+    "case, options, adjoint",
+    [("rigid", "RKMK87 ts", STORED), ("chain", "RKMK87 event", REFILLED)],
+    ids=["rigid", "chain, event, refilled"],
+)
+def test_batched_gradients_of_members_taking_different_steps(case, options, adjoint):
     # Under vmap the reverse sweep runs to the longest member's steps; the others must
-    # discard the extra sweeps. On the chain the stage values of only a few steps are
-    # kept, so each member evaluates those of its other steps again, in its own blocks.
-    options = "RKMK87 ts"
+    # discard the extra sweeps. On the chain each member stops at its own event, and the
+    # stage values of only a few steps are kept, so each member evaluates those of its
+    # other steps again, in its own blocks.
     xi, inertia = _params(case)
     xis = jnp.stack([xi, 3.0 * xi])
 
@@ -247,7 +253,8 @@ def test_batched_gradients_of_members_taking_different_steps(case, adjoint):
     ours, reference = batched(adjoint), batched(CHECKPOINTED)
     accepted = ours[1][0]
     assert accepted[0] != accepted[1]
-    assert case == "rigid" or min(accepted) > 2 * KEPT_STEPS  # blocks refilled
+    # Blocks refilled: in each member, and in one of them more than one block.
+    assert case == "rigid" or (min(accepted) > KEPT_STEPS and max(accepted) > 2 * KEPT_STEPS)
     for i in range(len(xis)):
         member = functools.partial(jax.tree.map, lambda a, i=i: a[i])
         _assert_gradients_equal(member(ours), member(reference))
