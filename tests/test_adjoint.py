@@ -69,7 +69,7 @@ def _gradient(case, adjoint, options_key):
     return jax.jit(jax.grad(functools.partial(_loss, case, adjoint, options), has_aux=True))
 
 
-CROSSING = 0.15  # the chain's section frame crosses it after 4 steps, or 6 at a third the speed
+CROSSING = 0.15  # the chain's section frame crosses it after 6 steps (4 with thrice the twist)
 
 
 def _crossing(t, y, args, **kwargs):
