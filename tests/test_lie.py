@@ -14,7 +14,7 @@ import pytest
 import scipy.linalg
 
 from bundledyn import lie
-from bundledyn._lie._so3 import so3_dexp_derivative, so3_dexp_second_derivative
+from bundledyn._lie._so3 import so3_dexp_derivative, so3_dexp_second_derivative_along
 
 PI = np.pi
 # θ = 0, tiny, in the small-angle log branch, on both sides of the Taylor switch (θ² = 1),
@@ -325,15 +325,19 @@ def test_dexp_derivative_equals_autodiff_and_finite_differences(rng, theta):
 
 
 @pytest.mark.parametrize("theta", SPECIAL, ids=SPECIAL_IDS)
-def test_dexp_second_derivative_equals_autodiff_and_finite_differences(rng, theta):
-    # The written-out second derivative the ball joints' metric jet differentiates with.
+def test_dexp_second_derivative_along_equals_autodiff_and_finite_differences(rng, theta):
+    # The written-out second derivative the ball joints' metric jet differentiates with,
+    # contracted with a direction u and with two vectors v per rotation (broadcast, as the
+    # jet applies it to several velocities).
     w = jnp.asarray(_rotvecs(rng, np.full(N, theta)))
-    got = so3_dexp_second_derivative(w)
-    autodiff = jnp.moveaxis(jax.vmap(jax.jacfwd(so3_dexp_derivative))(w), -1, 1)
+    u, v = jnp.asarray(rng.normal(size=(N, 3))), jnp.asarray(rng.normal(size=(2, N, 3)))
+    got = so3_dexp_second_derivative_along(w, u, v)
+    first = jax.vmap(jax.jacfwd(so3_dexp_derivative))(w)  # (N, l, 3, i, m)
+    autodiff = jnp.einsum("nlaim,rni,nm->rnla", first, v, u)
     _check({"jacfwd": _maxabs(got - autodiff)}, 1e-14)
     h = 1e-6
-    e = h * jnp.eye(3)
-    central = (so3_dexp_derivative(w[:, None] + e) - so3_dexp_derivative(w[:, None] - e)) / (2 * h)
+    step = so3_dexp_derivative(w + h * u) - so3_dexp_derivative(w - h * u)
+    central = jnp.einsum("nlai,rni->rnla", step, v) / (2 * h)
     _check({"central differences": _maxabs(got - central)}, 1e-9)
 
 

@@ -247,46 +247,59 @@ def so3_dexp_derivative(w):
     return -b * so3_hat(e) + c * (outer - 2.0 * wl * e) + 2.0 * wl * (-db * hat_w + dc * hat_w2)
 
 
-def so3_dexp_second_derivative(w):
-    r"""The second derivative of `so3_dexp`: $\partial_m\partial_l\,\mathrm{dexp}(w)$.
+def so3_dexp_second_derivative_along(w, u, v):
+    r"""The second derivative of `so3_dexp` along $u$, applied to $v$: $\partial_u\partial_l\,
+    \big(\mathrm{dexp}(w)\,v\big)$ for $l = 1, 2, 3$.
 
-    Differentiating `so3_dexp_derivative` once more, with $P_l = w e_l^T + e_l w^T - 2w_l 1$
-    ($= \partial_l \tilde w^2$) and the primes $d/dx$:
-    $\partial_m\partial_l\,\mathrm{dexp} = -2B'(w_m\tilde e_l + w_l\tilde e_m)
-    + 2C'(w_m P_l + w_l P_m) + C\,\partial_m P_l + 2\delta_{lm}(-B'\tilde w + C'\tilde w^2)
-    + 4w_lw_m(-B''\tilde w + C''\tilde w^2)$.
+    Differentiating `so3_dexp_derivative` once more along $u$, with $P_l = w e_l^T + e_l w^T -
+    2w_l 1$ ($= \partial_l \tilde w^2$), $P_u = \sum_m u_m P_m$, $\partial_u P_l = u e_l^T +
+    e_l u^T - 2u_l 1$ and the primes $d/dx$, $x = \theta^2$:
+    $-2B'\big((u\cdot w)\,e_l\times v + w_l\,u\times v\big) + 2C'\big((u\cdot w)P_l + w_lP_u\big)v
+    + C\,(\partial_u P_l)v + 2u_l(-B'\,w\times v + C'\tilde w^2 v)
+    + 4w_l(u\cdot w)(-B''\,w\times v + C''\tilde w^2 v)$. A ball joint's metric jet needs only
+    these contractions, not the whole $3\times3\times3\times3$ tensor.
 
     **Arguments:**
 
     - `w`: rotation vector, shape `(..., 3)`.
+    - `u`: the direction of differentiation, shape `(..., 3)`.
+    - `v`: the vector `dexp` is applied to, shape `(..., 3)`.
+
+    The three broadcast against each other.
 
     **Returns:**
 
-    Array of shape `(..., 3, 3, 3, 3)`, the derivatives along $w_m$ then $w_l$ first.
+    Array of shape `(..., 3, 3)`: row $l$ is $\partial_u\partial_l(\mathrm{dexp}(w)\,v)$.
     """
-    w = _float(w)
-    x = _sq(w)
-    b, c, db, dc, ddb, ddc = (k[..., None, None, None, None] for k in _coefficients(x, "bcefgh"))
+    w, u, v = _float(w), _float(u), _float(v)
+    x = _sq(w)[..., None, None]  # before broadcasting: the coefficients once per rotation
+    c, db, dc, ddb, ddc = _coefficients(x, "cefgh")
+
+    def dot(a, b):
+        return jnp.sum(a * b, axis=-1)[..., None, None]
+
+    def row(a):  # the same 3-vector in every row l
+        return a[..., None, :]
+
+    def per_l(a):  # a_l, the l-th component, as a factor of row l
+        return a[..., :, None]
+
+    # The terms gathered by the vector each multiplies: w, u, v, u×v, w×v, e_l and e_l×v.
+    uw, uv, wv = dot(u, w), dot(u, v), dot(w, v)
+    w_l, u_l, v_l = per_l(w), per_l(u), per_l(v)
+    along_w = 2.0 * dc * (uw * v_l + w_l * uv + u_l * wv) + 4.0 * ddc * uw * w_l * wv
+    along_u = c * v_l + 2.0 * dc * w_l * wv
+    along_v = -2.0 * (c + dc * x) * u_l - 4.0 * (2.0 * dc + ddc * x) * uw * w_l
+    along_w_cross_v = -2.0 * db * u_l - 4.0 * ddb * uw * w_l
     e = jnp.eye(3, dtype=w.dtype)
-    w_m = w[..., :, None, None, None]
-    w_l = w[..., None, :, None, None]
-    hat_e = so3_hat(e)
-    hat_w = so3_hat(w)[..., None, None, :, :]
-    hat_w2 = (w[..., :, None] * w[..., None, :] - x[..., None, None] * e)[..., None, None, :, :]
-    outer = w[..., None, :, None] * e[:, None, :] + e[:, :, None] * w[..., None, None, :]
-    P = outer - 2.0 * w[..., :, None, None] * e  # P[l] = ∂_l w̃²
-    dP = (
-        e[:, None, :, None] * e[None, :, None, :]
-        + e[None, :, :, None] * e[:, None, None, :]
-        - 2.0 * e[:, :, None, None] * e
-    )
-    delta = e[:, :, None, None]
     return (
-        -2.0 * db * (w_m * hat_e + w_l * hat_e[:, None])
-        + 2.0 * dc * (w_m * P[..., None, :, :, :] + w_l * P[..., :, None, :, :])
-        + c * dP
-        + 2.0 * delta * (-db * hat_w + dc * hat_w2)
-        + 4.0 * w_m * w_l * (-ddb * hat_w + ddc * hat_w2)
+        along_w * row(w)
+        + along_u * row(u)
+        + along_v * row(v)
+        - 2.0 * db * w_l * row(jnp.cross(u, v))
+        + along_w_cross_v * row(jnp.cross(w, v))
+        + (2.0 * dc * uw * wv + c * uv) * e
+        - 2.0 * db * uw * jnp.cross(e, row(v))
     )
 
 

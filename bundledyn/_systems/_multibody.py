@@ -9,7 +9,7 @@ import numpy as np
 from jaxtyping import Array, Float
 
 from .. import lie
-from .._lie._so3 import so3_dexp_derivative, so3_dexp_second_derivative
+from .._lie._so3 import so3_dexp_derivative
 from .._linalg import einsum, matmul, take
 from ._base import AbstractInertialSystem, autodiff_metric_jet
 from ._link import Link
@@ -231,6 +231,13 @@ class Multibody(AbstractMultibody):
     def body_poses(self, q):
         return take(self._node_poses(q)[0], self.tables.body_last)
 
+    def _ball_frames(self, T, ball_nodes):
+        r"""Each ball joint's rotation $R$ and centre $c = p + Ra$ in the base frame, from
+        the node poses `T` `(nodes, 4, 4)`: shapes `(k, 3, 3)` and `(k, 3)`."""
+        T_ball = take(T, ball_nodes)
+        R = T_ball[:, :3, :3]
+        return R, T_ball[:, :3, 3] + matmul(R, self.ball_anchors[..., None])[..., 0]
+
     def _ball_twists(self, T, ball_nodes, axes):
         r"""Rotations about each ball joint's anchor, as twists in the base frame.
 
@@ -248,9 +255,7 @@ class Multibody(AbstractMultibody):
 
         Shape `(k, ..., 6, m)`.
         """
-        T_ball = take(T, ball_nodes)
-        R = T_ball[:, :3, :3]
-        c = T_ball[:, :3, 3] + matmul(R, self.ball_anchors[..., None])[..., 0]
+        R, c = self._ball_frames(T, ball_nodes)
         lead = (slice(None),) + (None,) * (axes.ndim - 3)
         w = matmul(R[lead], axes)
         v = jnp.cross(c[lead][..., None], w, axis=-2)
@@ -344,15 +349,14 @@ class Multibody(AbstractMultibody):
 
     def _ball_column_derivative(self, q, T, ball_nodes) -> BallColumnDerivative:
         r"""$\operatorname{Ad}_{T} \partial S_i/\partial\varphi_l$ of each ball joint's own columns,
-        $S = [J_r; \hat a J_r]$ with $J_r = \operatorname{dexp}(\varphi)$ (`so3_dexp_derivative`)."""
+        $S = [J_r; \hat a J_r]$ with $J_r = \operatorname{dexp}(\varphi)$ (`so3_dexp_derivative`),
+        with what their next derivative needs (`BallColumnDerivative`)."""
         cols = np.array(self.tables.q_start)[ball_nodes][:, None] + np.arange(3)
         phi = take(q, cols)
-        dJr = so3_dexp_derivative(phi)  # (k, l, 3, i)
-        values = jnp.swapaxes(self._ball_twists(T, ball_nodes, dJr), -1, -2)
-        ddJr = so3_dexp_second_derivative(phi)  # (k, m, l, 3, i)
-        second = jnp.swapaxes(self._ball_twists(T, ball_nodes, ddJr), -1, -2)
+        R, c = self._ball_frames(T, ball_nodes)
+        values = jnp.swapaxes(self._ball_twists(T, ball_nodes, so3_dexp_derivative(phi)), -1, -2)
         columns = tuple(map(tuple, cols.tolist()))
-        return BallColumnDerivative(values, second, columns, self.shape_dim)
+        return BallColumnDerivative(values, phi, R, c, columns, self.shape_dim)
 
     def with_pseudo_inertias(self, P) -> "Multibody":
         m, c, J = inertial_from_pseudo_inertia(P)

@@ -6,6 +6,7 @@ import numpy as np
 from jaxtyping import Array, Float
 
 from .. import lie
+from .._lie._so3 import so3_dexp_second_derivative_along
 from .._linalg import einsum, matmul, take
 from ._metric_jet import AbstractMetricJet
 
@@ -35,13 +36,16 @@ class BallColumnDerivative(eqx.Module):
     $3\times 3$ twists per joint are not zero: `values[k, l, i]` $= \partial Z_{c_{ki}} /
     \partial q_{c_{kl}}$ with $c_k$ = `columns[k]` joint $k$'s coordinates. The two
     contractions the metric jet needs are formed from these blocks and placed among the
-    $d$ columns by constant slices. `second[k, m, l, i]` is the derivative of
-    `values[k, l, i]` along $q_{c_{km}}$ with the joint's node held still (the next
-    derivative of its $\operatorname{dexp}$), for the jet's second derivatives.
+    $d$ columns by constant slices. For the jet's second derivatives (the next derivative
+    of each joint's $\operatorname{dexp}$, `so3_dexp_second_derivative_along`) it keeps the
+    joints' coordinates, and their rotations and centres in the base frame, which turn a
+    rotation axis $\omega$ of the joint's frame into the twist $(R\omega, c\times R\omega)$.
     """
 
     values: Float[Array, "k 3 3 6"]
-    second: Float[Array, "k 3 3 3 6"]
+    coordinates: Float[Array, "k 3"]
+    rotations: Float[Array, "k 3 3"]
+    centres: Float[Array, "k 3"]
     columns: tuple[tuple[int, int, int], ...] = eqx.field(static=True)
     shape_dim: int = eqx.field(static=True)
 
@@ -61,25 +65,33 @@ class BallColumnDerivative(eqx.Module):
         """Each joint's own coordinates of `x` (along `axis`), shape `(k, 3)` there."""
         return take(x, np.array(self.columns), axis=axis)
 
+    def _in_base(self, axes):
+        r"""Rotations about each joint's centre as base-frame twists: `axes` `(r, k, l, 3)`
+        in the joints' frames, returned `(r, k, l, 6)`."""
+        w = sum(self.rotations[:, None, :, j] * axes[..., j, None] for j in range(3))
+        return jnp.concatenate([w, jnp.cross(self.centres[:, None, :], w)], axis=-1)
+
     def along(self, u):
         r"""$\sum_m u_m\,\partial Z_j/\partial q_m$, shape `(6, d)`."""
         blocks = jnp.einsum("kl,klix->kix", self._own(u), self.values)
         return self._placed(blocks.reshape(-1, 6), axis=0).T
 
-    def _applied(self, values, V):
-        blocks = jnp.einsum("klix,rki->rklx", values, self._own(V, axis=1))
-        return self._placed(blocks.reshape(V.shape[0], -1, 6), axis=1)
+    def _blocks(self, v):
+        r"""$\sum_i v_{ki}\,\partial Z_{c_{ki}}/\partial q_{c_{kl}}$ for the joints' own
+        coordinates `v` `(r, k, 3)` of each row: shape `(r, k, l, 6)`."""
+        return jnp.einsum("klix,rki->rklx", self.values, v)
 
     def applied(self, V):
         r"""$\sum_j (\partial Z_j/\partial q_m) v_j$ for each row $v$ of `V` `(r, d)`: shape `(r, d, 6)`."""
-        return self._applied(self.values, V)
+        blocks = self._blocks(self._own(V, axis=1))
+        return self._placed(blocks.reshape(V.shape[0], -1, 6), axis=1)
 
     def applied_along(self, u, W_columns, V):
         r"""$\partial_u$ of `applied(V)` at fixed `V`.
 
         The joint's node moves with the twist $W$ of the joints at or above it, which turns
         each block by $\operatorname{ad}_W$, and its own coordinates move its
-        $\operatorname{dexp}$ (`second`).
+        $\operatorname{dexp}$ (`so3_dexp_second_derivative_along`).
 
         **Arguments:**
 
@@ -87,11 +99,11 @@ class BallColumnDerivative(eqx.Module):
         - `W_columns`: for each column, the twist of the joints at or above it, `(d, 6)`.
         - `V`: as in `applied`.
         """
-        W = take(W_columns, np.array(self.columns)[:, 0])[:, None, None, :]
-        values = lie.bracket(W, self.values) + jnp.einsum(
-            "km,kmlix->klix", self._own(u), self.second
-        )
-        return self._applied(values, V)
+        W = take(W_columns, np.array(self.columns)[:, 0])[None, :, None, :]
+        v = self._own(V, axis=1)
+        second = so3_dexp_second_derivative_along(self.coordinates, self._own(u), v)
+        blocks = lie.bracket(W, self._blocks(v)) + self._in_base(second)
+        return self._placed(blocks.reshape(V.shape[0], -1, 6), axis=1)
 
 
 class TreeMetricJet(AbstractMetricJet):
