@@ -1,5 +1,6 @@
 """`StoredStepsAdjoint` gives the gradients of diffrax's `RecursiveCheckpointAdjoint`:
-for every Lie-group solver, with saves between steps, at the steps, and at an event."""
+for every Lie-group solver, with saves between steps, at the steps, and at an event; and,
+on a chain under gravity, a spring and a damper, those of forward-mode sensitivities."""
 
 import functools
 
@@ -66,7 +67,9 @@ def _params(case):
 @functools.cache
 def _gradient(case, adjoint, options_key):
     options = dict(OPTIONS[options_key])
-    return jax.jit(jax.grad(functools.partial(_loss, case, adjoint, options), has_aux=True))
+    # diffrax's forward-mode sensitivities: a reference in forward mode (`jacfwd`).
+    derivative = jax.jacfwd if isinstance(adjoint, diffrax.ForwardMode) else jax.grad
+    return jax.jit(derivative(functools.partial(_loss, case, adjoint, options), has_aux=True))
 
 
 CROSSING = 0.15  # the chain's section frame crosses it after 6 steps (4 with thrice the twist)
@@ -102,6 +105,10 @@ OPTIONS = {
 }
 
 CHECKPOINTED = diffrax.RecursiveCheckpointAdjoint()
+# Where the solver is not the point (the chain under effects, its field's reverse pass), the
+# reference is forward-mode sensitivities: a derivation sharing nothing with either reverse
+# sweep, and a third of the checkpointed gradient's compile time.
+FORWARD = diffrax.ForwardMode()
 STORED = bd.StoredStepsAdjoint()
 AUTODIFF_FIELD = bd.StoredStepsAdjoint(field_reverse="autodiff")
 
@@ -156,25 +163,29 @@ def _twist_gradient(case, adjoint, options_key):
 
 
 @pytest.mark.parametrize("adjoint", [STORED, AUTODIFF_FIELD], ids=["hand-derived", "autodiff"])
-def test_through_a_chains_field_gradients_equal_checkpointed_ones(adjoint):
+def test_through_a_chains_field_gradients_equal_forward_mode_ones(adjoint):
     # A chain under gravity, a spring and a damper, its scene differentiated too:
     # `StoredStepsAdjoint` steps the field with its reverse pass (`ReverseModeSceneTerm`,
-    # by default) or autodiff's, diffrax with autodiff's.
+    # by default) or autodiff's; the reference pushes tangents forward through the solve.
     case, options = "chain, effects", "RKMK4 ts"
     params = _params(case)
     _assert_gradients_equal(
-        _gradient(case, adjoint, options)(params), _gradient(case, CHECKPOINTED, options)(params)
+        _gradient(case, adjoint, options)(params), _gradient(case, FORWARD, options)(params)
     )
 
 
-@pytest.mark.parametrize("case, options", [("rigid", "RKMK87 ts"), ("chain, effects", "RKMK4 ts")])
-def test_with_the_scene_held_constant_gradients_equal_checkpointed_ones(case, options):
+@pytest.mark.parametrize(
+    "case, options, reference",
+    [("rigid", "RKMK87 ts", CHECKPOINTED), ("chain, effects", "RKMK4 ts", FORWARD)],
+    ids=["rigid", "chain, effects"],
+)
+def test_with_the_scene_held_constant_gradients_equal_the_references(case, options, reference):
     # On the chain, the field's written-out reverse pass alone (no autodiff for the scene).
-    # (That pass at single states: tests/test_field_vjp.py.) diffrax's gradient with
+    # (That pass at single states: tests/test_field_vjp.py.) The reference's gradient with
     # respect to the twist is the twist's part of its gradient with respect to both.
     params = _params(case)
-    (reference, _), steps = _gradient(case, CHECKPOINTED, options)(params)
-    _assert_gradients_equal(_twist_gradient(case, STORED, options)(params[0]), (reference, steps))
+    (expected, _), steps = _gradient(case, reference, options)(params)
+    _assert_gradients_equal(_twist_gradient(case, STORED, options)(params[0]), (expected, steps))
 
 
 def test_a_derivative_in_the_horizon_is_refused_naming_the_adjoint_that_gives_it():
