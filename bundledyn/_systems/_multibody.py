@@ -98,6 +98,29 @@ class AbstractMultibody(AbstractInertialSystem):
         )
 
 
+def _ball_twists(R, c, axes):
+    r"""Rotations about each ball joint's anchor, as twists in the base frame.
+
+    A ball joint's column for the body-frame axis $\omega$ is $S\omega = (\omega, a\times\omega)$;
+    in the base frame $\operatorname{Ad}_T S\omega = (R\omega, c\times R\omega)$ with
+    $c = p + Ra$ the anchor's position there, formed without the 6×6 $\operatorname{Ad}_T$.
+
+    **Arguments:**
+
+    - `R`, `c`: the joints' rotations `(k, 3, 3)` and anchors `(k, 3)` in the base frame
+      (`Multibody._ball_frames`).
+    - `axes`: body-frame rotation axes as columns, shape `(k, ..., 3, m)`.
+
+    **Returns:**
+
+    Shape `(k, ..., 6, m)`.
+    """
+    lead = (slice(None),) + (None,) * (axes.ndim - 3)
+    w = matmul(R[lead], axes)
+    v = jnp.cross(c[lead][..., None], w, axis=-2)
+    return jnp.concatenate([w, v], axis=-2)
+
+
 class Multibody(AbstractMultibody):
     r"""A tree of rigid bodies with a floating base (seed 004, §4, systems of rigid bodies).
 
@@ -238,33 +261,11 @@ class Multibody(AbstractMultibody):
         R = T_ball[:, :3, :3]
         return R, T_ball[:, :3, 3] + matmul(R, self.ball_anchors[..., None])[..., 0]
 
-    def _ball_twists(self, T, ball_nodes, axes):
-        r"""Rotations about each ball joint's anchor, as twists in the base frame.
-
-        A ball joint's column for the body-frame axis $\omega$ is $S\omega = (\omega, a\times\omega)$;
-        in the base frame $\operatorname{Ad}_T S\omega = (R\omega, c\times R\omega)$ with
-        $c = p + Ra$ the anchor's position there, formed without the 6×6 $\operatorname{Ad}_T$.
-
-        **Arguments:**
-
-        - `T`: all node poses, shape `(nodes, 4, 4)`.
-        - `ball_nodes`: the ball joints' node indices, `k` of them.
-        - `axes`: body-frame rotation axes as columns, shape `(k, ..., 3, m)`.
-
-        **Returns:**
-
-        Shape `(k, ..., 6, m)`.
-        """
-        R, c = self._ball_frames(T, ball_nodes)
-        lead = (slice(None),) + (None,) * (axes.ndim - 3)
-        w = matmul(R[lead], axes)
-        v = jnp.cross(c[lead][..., None], w, axis=-2)
-        return jnp.concatenate([w, v], axis=-2)
-
     def _shape_columns(self, T, screw_nodes, ball_nodes, Jr):
         """$Z$: every joint column as a twist in the base frame, shape (6, d)."""
         Z_screw = einsum("kij,kj->ik", lie.Ad(take(T, screw_nodes)), unit_screws(self.screw_axes))
-        Z_ball = jnp.moveaxis(self._ball_twists(T, ball_nodes, Jr), 0, 1).reshape(6, -1)
+        Z_ball = jnp.moveaxis(_ball_twists(*self._ball_frames(T, ball_nodes), Jr), 0, 1)
+        Z_ball = Z_ball.reshape(6, -1)
         q_start = np.array(self.tables.q_start)
         columns = np.concatenate(
             [q_start[screw_nodes], (q_start[ball_nodes][:, None] + np.arange(3)).reshape(-1)]
@@ -354,7 +355,7 @@ class Multibody(AbstractMultibody):
         cols = np.array(self.tables.q_start)[ball_nodes][:, None] + np.arange(3)
         phi = take(q, cols)
         R, c = self._ball_frames(T, ball_nodes)
-        values = jnp.swapaxes(self._ball_twists(T, ball_nodes, so3_dexp_derivative(phi)), -1, -2)
+        values = jnp.swapaxes(_ball_twists(R, c, so3_dexp_derivative(phi)), -1, -2)
         columns = tuple(map(tuple, cols.tolist()))
         return BallColumnDerivative(values, phi, R, c, columns, self.shape_dim)
 
