@@ -195,6 +195,33 @@ def test_the_fits_gradient_is_finite_and_equals_finite_differences():
         assert abs(difference - gradient[k]) < 1e-6 * scale, (k, difference, gradient[k])
 
 
+@pytest.mark.parametrize("rows", [300, 10], ids=["tall", "fewer residuals than variables"])
+def test_the_damped_step_is_the_truncated_singular_value_one_of_the_stacked_jacobian(rows):
+    """Levenberg–Marquardt's step from the triangle of [A | b] equals the one written with
+    the singular value decomposition of the whole stacked A = [J; C] diag(u) (its left
+    vectors formed), at every damping, with an undetermined direction left where it is."""
+    from bundledyn._identify._levenberg_marquardt import _factorization, _step
+
+    rng = np.random.default_rng(rows)
+    n = 40
+    J = rng.normal(size=(rows, n)) * np.logspace(-3, 3, n)
+    J[:, 5] = 0.0  # a direction the data do not determine
+    C, r, c = rng.normal(size=(20, n)), rng.normal(size=rows), rng.normal(size=20)
+    C[:, 5] = 0.0
+    units = rng.uniform(0.5, 2.0, n)
+    A, b = np.concatenate([J, C]) * units, np.concatenate([r, c])
+    W, singular, Vt = np.linalg.svd(A, full_matrices=False)
+    factorization = _factorization(r, J, c, C, units)
+    for damping in (1e-3, 1.0, 1e3):
+        gain = np.where(singular * 10.0 > 1.0, singular / (singular**2 + damping), 0.0)
+        y = -(Vt.T * gain) @ (W.T @ b)
+        model = b + A @ y
+        delta, predicted = _step(factorization, damping, units, 10.0)
+        np.testing.assert_allclose(delta, units * y, rtol=0, atol=1e-12 * np.abs(y).max())
+        np.testing.assert_allclose(predicted, 0.5 * (b @ b - model @ model), rtol=1e-12)
+        assert abs(delta[5]) <= 1e-12 * np.abs(delta).max()  # stays put, to rounding
+
+
 ARM = """
 <mujoco model="arm">
   <worldbody>

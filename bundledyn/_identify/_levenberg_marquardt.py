@@ -14,6 +14,11 @@ determine stay put instead of drifting on rounding-level gradients until a body 
 (the identifiability report names them). The gain ratio of actual to predicted reduction
 of $\tfrac12\|r\|^2 + \tfrac12\|c\|^2$ drives Nielsen's update of $\lambda$; it stops on
 small steps or reductions.
+
+$A$ has many more rows (samples) than columns, and a step needs only $\Sigma$, $V$ and
+$W^Tb$: a QR factorization of $[A \mid b]$ gives $R$ and $Q^Tb$ without forming $Q$, and
+$R = U\Sigma V^T$ (square) gives $W^Tb = U^TQ^Tb$. This is factorized once per Jacobian;
+the trial steps at other dampings reuse it.
 """
 
 from collections.abc import Callable
@@ -48,17 +53,41 @@ class LevenbergMarquardtResult(NamedTuple):
     converged: bool
 
 
+class _Factorization(NamedTuple):
+    r"""What every damped step from one Jacobian needs: the singular values and right
+    singular vectors of $A$, $W^Tb$ and the residuals' squared norm $b\cdot b$."""
+
+    singular: jax.Array
+    right: jax.Array
+    projected: jax.Array
+    norm: jax.Array
+
+
 @jax.jit
-def _step(r, J, c, C, damping, units, resolution):
+def _factorization(r, J, c, C, units):
+    r"""$A = [J; C]\,\mathrm{diag}(u)$ and $b = [r; c]$ factorized for `_step`, through the
+    triangle of $[A \mid b]$ (module docstring)."""
+    A, b = jnp.concatenate([J, C]) * units, jnp.concatenate([r, c])
+    n = A.shape[1]
+    Ab = jnp.concatenate([A, b[:, None]], axis=1)
+    # Zero rows, where there are fewer residuals than variables, keep R square.
+    Ab = jnp.pad(Ab, ((0, max(0, n + 1 - Ab.shape[0])), (0, 0)))
+    triangle = jnp.linalg.qr(Ab, mode="r")
+    left, singular, right = jnp.linalg.svd(triangle[:n, :n])
+    return _Factorization(singular, right, left.T @ triangle[:n, n], b @ b)
+
+
+@jax.jit
+def _step(factorization: _Factorization, damping, units, resolution):
     """The damped Gauss–Newton step of the stacked residuals, in the natural units and only
     along directions the residuals resolve, and the reduction it predicts."""
-    A, b = jnp.concatenate([J, C]) * units, jnp.concatenate([r, c])
-    left, singular, right = jnp.linalg.svd(A, full_matrices=False)
+    singular, right, projected, _ = factorization
     resolved = singular * resolution > 1.0
     gain = jnp.where(resolved, singular / (singular**2 + damping), 0.0)
-    y = -(right.T * gain) @ (left.T @ b)
-    model = b + A @ y
-    return units * y, 0.5 * (b @ b - model @ model)
+    y = -(right.T * gain) @ projected
+    # b·b - |b + Ay|² with b = W Wᵀb + b⊥ and Ay in the range of W.
+    model = projected + singular * (right @ y)
+    return units * y, 0.5 * (projected @ projected - model @ model)
 
 
 def levenberg_marquardt(
@@ -98,11 +127,12 @@ def levenberg_marquardt(
     z = jnp.asarray(z0)
     units = jnp.ones_like(z) if units is None else jnp.asarray(units, z.dtype)
     r, J, c, C = evaluate(z)
-    cost = 0.5 * float(r @ r + c @ c)
+    factorization = _factorization(r, J, c, C, units)
+    cost = 0.5 * float(factorization.norm)
     costs, evaluations, trials, steps = [cost], 1, 0, 0
     damping, growth, converged = 1e-3, 2.0, False
     while trials < max_steps:
-        delta, predicted = _step(r, J, c, C, damping, units, resolution)
+        delta, predicted = _step(factorization, damping, units, resolution)
         if not np.isfinite(float(predicted)):
             break
         r_new, c_new = residuals(z + delta)
@@ -114,6 +144,7 @@ def levenberg_marquardt(
             reduction = cost - cost_new
             z, cost = z + delta, cost_new
             r, J, c, C = evaluate(z)
+            factorization = _factorization(r, J, c, C, units)
             evaluations += 1
             costs.append(cost)
             steps += 1
