@@ -25,8 +25,27 @@ def _parser():
     return parser
 
 
+def one_device_per_core() -> int:
+    """Give JAX one CPU device per core, before it starts, and return the count.
+
+    mujoco.sysid rolls out on one thread per core (`os.cpu_count()`); bundledyn's fit
+    spreads its shooting windows over the local devices (`over_devices`), which on a CPU
+    are the ones `--xla_force_host_platform_device_count` makes. A count already in
+    `XLA_FLAGS` is kept."""
+    import os
+
+    flags = os.environ.get("XLA_FLAGS", "")
+    name = "--xla_force_host_platform_device_count"
+    if name not in flags:
+        os.environ["XLA_FLAGS"] = f"{flags} {name}={os.cpu_count() or 1}".strip()
+    import jax
+
+    return jax.local_device_count()
+
+
 def measure(args):
     """Every case's fits by both methods, with provenance; None without mujoco.sysid."""
+    devices = one_device_per_core()
     import bundledyn as bd
     from benchmarks.identification import sysid
     from benchmarks.identification.cases import CASES
@@ -42,7 +61,7 @@ def measure(args):
     levels = (0.01,) if args.quick else LEVELS
     report = report_header(
         PACKAGES, args.quick, seeds=len(seeds), levels=list(levels), sysid_iters=sysid_iters,
-        cases={},
+        devices=devices, sysid_threads=sysid.threads(), cases={},
     )  # fmt: skip
     began = time.perf_counter()
     for name in names:

@@ -24,6 +24,19 @@ def _undetermined_names(case_result):
     return names
 
 
+def _parallelism(report):
+    """How many cores each method used: bundledyn's devices, mujoco.sysid's threads."""
+    if "devices" not in report:
+        return []
+    return [
+        f"Both methods on {report['devices']} cores: bundledyn spreads its shooting windows "
+        f"over {report['devices']} CPU devices (`--xla_force_host_platform_device_count`), "
+        f"mujoco.sysid rolls out on {report['sysid_threads']} threads (its default, one "
+        "per core).",
+        "",
+    ]
+
+
 def markdown(report):
     """The report's markdown: provenance, the columns explained, a table per data set, the goal."""
     env = report["environment"]
@@ -56,6 +69,7 @@ def markdown(report):
         "bundledyn fits by multiple shooting with `RKMK87` (the default solver), in fixed "
         "steps onto the sample times (`bundledyn/_identify/_shooting.py`).",
         "",
+        *_parallelism(report),
     ]
     for name, result in report["cases"].items():
         case = result["case"]

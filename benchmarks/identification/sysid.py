@@ -39,6 +39,15 @@ def available() -> bool:
         return False
 
 
+def threads() -> int:
+    """The threads mujoco.sysid's residual rolls out on (its default, `n_threads`)."""
+    import inspect
+
+    from mujoco.sysid._src import residual
+
+    return inspect.signature(residual.residual).parameters["n_threads"].default
+
+
 def _parameters(case, spec, model):
     from mujoco import sysid
 

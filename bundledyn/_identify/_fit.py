@@ -176,6 +176,10 @@ def fit(
 ) -> FitResult:
     r"""Identify the free parameters of a scene from measured motion.
 
+    The shooting windows are solved in one batch, spread over the local devices when there
+    are several (`over_devices`): on a CPU, start JAX with
+    `XLA_FLAGS=--xla_force_host_platform_device_count=N` to use N cores.
+
     **Arguments:**
 
     - `parameters`: the `Parameters`: the nominal scene and what is free.
@@ -221,7 +225,9 @@ def fit(
     problem = ShootingProblem(parameters, extra, measurements, windows, references)
 
     def evaluate(z, problem=problem):
-        return _evaluate(problem, gauge, window_states, z)
+        # On the host: the Levenberg–Marquardt step factorizes the whole Jacobian, which is
+        # not to be split over the devices that solved the windows (`over_devices`).
+        return jax.device_get(_evaluate(problem, gauge, window_states, z))
 
     def decision(theta):
         return jnp.concatenate([theta, window_states.reshape(-1)]) if windows.fit_states else theta
@@ -263,7 +269,7 @@ def fit(
     for stage, tolerance in stages:
         solution = levenberg_marquardt(
             lambda z, stage=stage: evaluate(z, stage),
-            lambda z, stage=stage: _residuals(stage, gauge, window_states, z),
+            lambda z, stage=stage: jax.device_get(_residuals(stage, gauge, window_states, z)),
             z0, max_steps=max(1, max_steps - trials), ftol=tolerance,
             units=units[: z0.shape[0]], callback=record,
         )  # fmt: skip

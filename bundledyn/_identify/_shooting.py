@@ -150,6 +150,34 @@ def _grid(ts, count: int, substeps: int):
     return np.minimum(index, n - 1), measured, ts[0] + dt * steps / substeps
 
 
+def over_devices(batched):
+    r"""Arrays batched along their first axis (the windows), spread over the local devices.
+
+    The windows are independent until their Jacobians are assembled, so each device can
+    solve a share of them: XLA partitions the batched solves along that axis. With $K$
+    windows, the largest number of devices that divides $K$ is used; one device, or none
+    dividing $K$, leaves the arrays as they are. On a CPU, the devices are the ones
+    `XLA_FLAGS=--xla_force_host_platform_device_count=N` creates (one per core to use),
+    set before JAX starts.
+
+    **Arguments:**
+
+    - `batched`: a tuple of arrays with the same leading size $K$.
+
+    **Returns:**
+
+    The same arrays, constrained to that sharding inside a traced function.
+    """
+    devices = jax.local_devices()
+    K = batched[0].shape[0]
+    count = max(n for n in range(1, len(devices) + 1) if K % n == 0)
+    if count == 1:
+        return batched
+    mesh = jax.sharding.Mesh(np.array(devices[:count]), ("windows",))
+    sharding = jax.sharding.NamedSharding(mesh, jax.sharding.PartitionSpec("windows"))
+    return tuple(jax.lax.with_sharding_constraint(x, sharding) for x in batched)
+
+
 def window_starts(ts, windows: Windows) -> np.ndarray:
     """The sample index at which each window starts, `(K,)`."""
     return _grid(ts, windows.count, windows.substeps)[0][:, 0]
@@ -256,6 +284,12 @@ class ShootingProblem(eqx.Module):
         end = jax.tree.map(lambda x: x[-1], states)
         return residuals, end
 
+    def _batched(self, S, S_next, refs, refs_next):
+        """The windows' arguments, batched along their first axis and spread over the local
+        devices (`over_devices`)."""
+        batched = (S, S_next, self.sample_index, self.measured, self.step_times, refs, refs_next)
+        return over_devices(batched)
+
     def split(self, z):
         r"""$(\theta, S)$ of a decision vector: the parameters and the `(K, n_s)` window
         states (empty without fitted states)."""
@@ -285,9 +319,7 @@ class ShootingProblem(eqx.Module):
             r, end = self.window(theta, s, k_idx, meas, ts, g_ref)
             return r, self._continuity(end, s_next, g_ref_next)
 
-        r, c = jax.vmap(one)(
-            S, S_next, self.sample_index, self.measured, self.step_times, refs, refs_next
-        )
+        r, c = jax.vmap(one)(*self._batched(S, S_next, refs, refs_next))
         c = c[:-1].reshape(-1) if self.windows.fit_states else jnp.zeros((0,), r.dtype)
         return r.reshape(-1), c
 
@@ -324,9 +356,7 @@ class ShootingProblem(eqx.Module):
             dc_next = jax.jacfwd(lambda sn: self._continuity(end, sn, g_ref_next))(s_next)
             return r, dr, c, dc, dc_next
 
-        r, dr, c, dc, dc_next = jax.vmap(one)(
-            S, S_next, self.sample_index, self.measured, self.step_times, refs, refs_next
-        )
+        r, dr, c, dc, dc_next = jax.vmap(one)(*self._batched(S, S_next, refs, refs_next))
         rows = r.shape[1]
         if not fit:
             empty = jnp.zeros((0,), r.dtype)
