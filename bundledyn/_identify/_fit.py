@@ -223,11 +223,16 @@ def fit(
     )
     references, window_states = _window_starts(windows, parameters, measurements, guess)
     problem = ShootingProblem(parameters, extra, measurements, windows, references)
+    # Inputs and outputs of the evaluations on the host: no input is then committed to one
+    # device where the windows are spread over several (`over_devices`), and the
+    # Levenberg–Marquardt step factorizes the whole Jacobian on one device.
+    problem, gauge, window_states = jax.device_get((problem, gauge, window_states))
 
     def evaluate(z, problem=problem):
-        # On the host: the Levenberg–Marquardt step factorizes the whole Jacobian, which is
-        # not to be split over the devices that solved the windows (`over_devices`).
-        return jax.device_get(_evaluate(problem, gauge, window_states, z))
+        return jax.device_get(_evaluate(problem, gauge, window_states, jax.device_get(z)))
+
+    def residuals(z, problem=problem):
+        return jax.device_get(_residuals(problem, gauge, window_states, jax.device_get(z)))
 
     def decision(theta):
         return jnp.concatenate([theta, window_states.reshape(-1)]) if windows.fit_states else theta
@@ -239,7 +244,7 @@ def fit(
         z0 = decision(parameters.initial())  # the warm start was worse than the nominal values
     z0 = _first_order(evaluate, z0, optimizer, optimizer_steps)
     data_rows = -gauge.residuals(parameters, theta0).shape[0] or None
-    r0, _ = _residuals(problem, gauge, window_states, z0)
+    r0, _ = residuals(z0)
     initial_residuals = np.asarray(r0)[:data_rows]
     iterates = [z0[: parameters.size]]
 
@@ -269,7 +274,7 @@ def fit(
     for stage, tolerance in stages:
         solution = levenberg_marquardt(
             lambda z, stage=stage: evaluate(z, stage),
-            lambda z, stage=stage: jax.device_get(_residuals(stage, gauge, window_states, z)),
+            lambda z, stage=stage: residuals(z, stage),
             z0, max_steps=max(1, max_steps - trials), ftol=tolerance,
             units=units[: z0.shape[0]], callback=record,
         )  # fmt: skip
