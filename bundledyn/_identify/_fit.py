@@ -231,7 +231,7 @@ def fit(
     def evaluate(z, problem=problem):
         return jax.device_get(_evaluate(problem, gauge, window_states, jax.device_get(z)))
 
-    def residuals(z, problem=problem):
+    def trial(z, problem=problem):
         return jax.device_get(_residuals(problem, gauge, window_states, jax.device_get(z)))
 
     def decision(theta):
@@ -244,7 +244,7 @@ def fit(
         z0 = decision(parameters.initial())  # the warm start was worse than the nominal values
     z0 = _first_order(evaluate, z0, optimizer, optimizer_steps)
     data_rows = -gauge.residuals(parameters, theta0).shape[0] or None
-    r0, _ = residuals(z0)
+    r0, _ = trial(z0)
     initial_residuals = np.asarray(r0)[:data_rows]
     iterates = [z0[: parameters.size]]
 
@@ -274,7 +274,7 @@ def fit(
     for stage, tolerance in stages:
         solution = levenberg_marquardt(
             lambda z, stage=stage: evaluate(z, stage),
-            lambda z, stage=stage: residuals(z, stage),
+            lambda z, stage=stage: trial(z, stage),
             z0, max_steps=max(1, max_steps - trials), ftol=tolerance,
             units=units[: z0.shape[0]], callback=record,
         )  # fmt: skip
