@@ -160,7 +160,9 @@ def gradient_units(scene, state, t1, rtol):
         def stage_terms(k):
             return for_replay(term, jax.tree.map(lambda v: v[k], stage_values))
 
-        return solver.stage_step(term, 0.0, h, y, None, stage_terms=stage_terms)[0]
+        return solver.stage_step(term, 0.0, h, y, None, stage_terms=stage_terms, reverse_pass=True)[
+            0
+        ]
 
     units = {
         "field": field,

@@ -26,36 +26,19 @@ read off the field as $\xi_i = (g_i^{-1}\dot g_i)^\vee$; matrices are never adde
 from typing import ClassVar
 
 import equinox as eqx
-import jax
-import jax.lax as lax
 import jax.numpy as jnp
 import jax.tree_util as jtu
 from diffrax import RESULTS, AbstractAdaptiveSolver, AbstractTerm
 
 from .. import lie
-from .._linalg import dot
-from .._term import KEPT_FIELD_OUTPUTS, split
+from .._term import split
 from ._base import AbstractLieGroupSolver
 from ._chart import body_field, body_term, checked_start, from_chart, recharted
 from ._interpolation import LieLocalInterpolation
+from ._stage_reverse import combine, stages, stages_with_reverse_pass
 from ._tableau import LieButcherTableau, dopri5_tableau, dopri8_tableau, rk4_tableau
 
 __all__ = ["AbstractRKMK", "RKMK4", "RKMK54", "RKMK87"]
-
-_HIGHEST = lax.Precision.HIGHEST
-_KEPT = jax.checkpoint_policies.save_only_these_names(KEPT_FIELD_OUTPUTS)
-
-
-def _combine(w, stack):
-    """Σ_i w_i stack[..., i] at full precision: for weights `w` of shape (s,), shape
-    `stack.shape[:-1]`; for a (m, s) matrix, the m combinations stacked first.
-
-    The stage axis is the stacks' last: under `vmap` the batch comes first, and a
-    contraction over a leading stage axis made XLA's CPU copy the whole stack to bring that
-    axis forward before every stage.
-    """
-    out = jnp.tensordot(stack, w.astype(stack.dtype), axes=([-1], [-1]), precision=_HIGHEST)
-    return out if w.ndim == 1 else jnp.moveaxis(out, -1, 0)
 
 
 class AbstractRKMK(AbstractLieGroupSolver):
@@ -118,7 +101,7 @@ class AbstractRKMK(AbstractLieGroupSolver):
         y1, y_error, dense_info, _ = self._step(terms, t0, t1, y0, args, field)
         return y1, y_error, dense_info, None, RESULTS.successful
 
-    def stage_step(self, terms, t0, t1, y0, args, *, stage_terms=None):
+    def stage_step(self, terms, t0, t1, y0, args, *, stage_terms=None, reverse_pass=False):
         r"""`step`, also returning the field's values at the stages, with the field of
         stage $i$ that of `stage_terms(i)` (default `terms`).
 
@@ -132,6 +115,9 @@ class AbstractRKMK(AbstractLieGroupSolver):
           `AbstractBodyTerm` (or diffrax's wrapper of one).
         - `stage_terms`: a function of the stage's index giving the body term evaluated at
           that stage, with the structure of `terms`.
+        - `reverse_pass`: differentiate the stages by their written-out reverse pass
+          (`_stage_reverse.py`), as the adjoint's reverse sweep does; the step then has no
+          forward-mode derivative.
 
         **Returns:**
 
@@ -149,55 +135,37 @@ class AbstractRKMK(AbstractLieGroupSolver):
             values = term.body_vf(t * direction, y, args)
             return terms.prod(values, control), values
 
-        return self._step(terms, t0, t1, y0, args, field)
+        return self._step(terms, t0, t1, y0, args, field, reverse_pass=reverse_pass)
 
-    def _step(self, terms, t0, t1, y0, args, field):
+    def _step(self, terms, t0, t1, y0, args, field, *, reverse_pass=False):
         """The step, with `field(i, t, y, control)` giving stage `i`'s field (in the
-        form of `body_field`) and a value to stack over the stages."""
+        form of `body_field`) and a value to stack over the stages; with `reverse_pass`,
+        the stages differentiated by their written-out reverse pass."""
         y0 = recharted(terms, t0, y0)
         tab = self.tableau
-        s = tab.num_stages
         g0, rest0, treedef = split(y0)
         dtype = jnp.result_type(*jtu.tree_leaves(y0))
         control = terms.contr(t0, t1)
         a = jnp.asarray(tab.a, dtype=dtype)
-        c = jnp.asarray(tab.c_full, dtype=dtype)
-
-        def stage(carry, i):
-            kappas, ks = carry
-            omega = _combine(a[i], kappas)
-            deltas = [_combine(a[i], k) for k in ks]
-            yi = from_chart(g0, rest0, treedef, omega, deltas)
-            out, kept = field(i, t0 + c[i] * (t1 - t0), yi, control)
-            eta, *kx = jtu.tree_leaves(out)
-            kappa = dot(lie.se3_dexp_inv(omega), eta.astype(omega.dtype))
-            kappas = kappas.at[..., i].set(kappa)
-            ks = [k.at[..., i].set(kxi.astype(k.dtype)) for k, kxi in zip(ks, kx, strict=True)]
-            return (kappas, ks), kept
-
-        kappas0 = jnp.zeros((6, s), dtype=g0.dtype)
-        ks0 = [jnp.zeros((*jnp.shape(x), s), dtype=jnp.result_type(x)) for x in rest0]
-        # Rematerialized under reverse mode: the scan then stores each stage's inputs, not
-        # the field's intermediates stacked over the stages (see the class docstring).
-        # A scan body needs no CSE barrier.
-        stage = jax.checkpoint(stage, prevent_cse=False, policy=_KEPT)
-        n = s if self.dense_output else tab.step_stages
-        (kappas, ks), values = lax.scan(stage, (kappas0, ks0), jnp.arange(n), length=n)
+        ts = t0 + jnp.asarray(tab.c_full, dtype=dtype) * (t1 - t0)
+        n = tab.num_stages if self.dense_output else tab.step_stages
+        run = stages_with_reverse_pass if reverse_pass else stages
+        kappas, ks, values = run(field, a, g0, rest0, treedef, ts, control, n)[:3]
 
         b = jnp.asarray(tab.b_sol, dtype=dtype)
-        y1 = from_chart(g0, rest0, treedef, _combine(b, kappas), [_combine(b, k) for k in ks])
+        y1 = from_chart(g0, rest0, treedef, combine(b, kappas), [combine(b, k) for k in ks])
         y1 = checked_start(y1, t0, t1, y0, [kappas[..., 0]] + [k[..., 0] for k in ks])
 
         if tab.b_error is None:
             y_error = None
         else:
             e = jnp.asarray(tab.b_error, dtype=dtype)
-            err_leaves = [lie.hat(_combine(e, kappas))] + [_combine(e, k) for k in ks]
+            err_leaves = [lie.hat(combine(e, kappas))] + [combine(e, k) for k in ks]
             y_error = jtu.tree_unflatten(treedef, err_leaves)
 
         if self.dense_output:
             d = jnp.asarray(tab.dense, dtype=dtype)
-            coeffs = [_combine(d, kappas)] + [_combine(d, k) for k in ks]
+            coeffs = [combine(d, kappas)] + [combine(d, k) for k in ks]
         else:  # stages were skipped: an interpolation would be wrong, so make it NaN
             degree = tab.dense.shape[0]
             coeffs = [jnp.full((degree, *k.shape[:-1]), jnp.nan, k.dtype) for k in (kappas, *ks)]
