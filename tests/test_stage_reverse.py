@@ -1,9 +1,10 @@
 """The stages of a Runge–Kutta–Munthe-Kaas step differentiated by their written-out reverse
 pass (`_stage_reverse.py`, what `StoredStepsAdjoint`'s reverse sweep takes) give autodiff's
 cotangents: for every Lie-group solver on a spinning body whose stages turn by up to about
-2.7 rad, and for `RKMK87` on a chain under gravity, a spring and a damper; with respect to the step's start, its two times and the scene's numbers, and on every output
-of the step (the end, the error estimate, the dense output, the field's values). The first
-stage is always at Ω = 0."""
+2.7 rad, and for `RKMK87` on a chain under gravity, a spring and a damper; with respect to
+the step's start, its two times and the scene's numbers, and on every output of the step
+(the end, the error estimate, the dense output, the field's values). The first stage is
+always at Ω = 0."""
 
 import functools
 
