@@ -216,7 +216,7 @@ def shape_acceleration(geo: BundleGeometry, wrench, shape_force) -> Float[Array,
 
 
 def reference_accelerations(system: AbstractSystem, q, xi, qdot, wrench, shape_force):
-    r"""$(\dot\xi, \ddot q)$ from the reference (Hamel / Euler–Poincaré) form, DESIGN §3.
+    r"""$(\dot\xi, \ddot q)$ from the reference (Hamel / Euler–Poincaré) form, architecture §3.
 
     $\tfrac{d}{dt}(I_r\xi + B\dot q) = \operatorname{ad}_\xi^T(I_r\xi + B\dot q) + F_b$ and
     $\tfrac{d}{dt}(B^T\xi + M\dot q) - \partial T/\partial q = Q_H$, i.e.
@@ -246,7 +246,7 @@ def _shape_rows(system: AbstractSystem, q, xi, qdot):
 def driven_shape_acceleration(system: AbstractSystem, q, xi, xi_dot, qdot, shape_force):
     r"""$\ddot q$ when the section frame's motion is given: a fixed or moving base.
 
-    The shape rows of the reference form (DESIGN §3; seed 004's shape equation with the
+    The shape rows of the reference form (architecture §3; seed 004's shape equation with the
     base's motion known, the dual of the prescribed shape of (2.7)):
     $\tfrac{d}{dt}(B^T\xi + M\dot q) - \partial T/\partial q = Q_H$, i.e.
     $M\ddot q = Q_H + \tfrac12 v^T\partial_q G\,v - (\partial_{\dot q}G\,v)_q - B^T\dot\xi$,

@@ -7,7 +7,7 @@ only the metric jet's forward contractions (`forms`, `along_applied`) and the de
 `forms` along a shape velocity (`forms_along`, in closed form for trees).
 
 In the Hamel variables $v = [\xi; \dot q]$ the accelerations $a = [\dot\xi; \ddot q]$ solve
-the reference form (DESIGN §3) $G a = h(q, v) + \tau$ with
+the reference form (architecture §3) $G a = h(q, v) + \tau$ with
 $h = [\operatorname{ad}_\xi^T p;\ \tfrac12 v^T\partial_q G\,v] - (\partial_{\dot q} G)v$, $p = (Gv)_\xi$,
 $\tau = [F_b; Q_H]$; the field's outputs are $\xi = U - A\dot q$, $\dot U = \dot\xi +
 (\partial_{\dot q}A)\dot q + A\ddot q$ and $\ddot q$. By the implicit function theorem, a

@@ -2,9 +2,9 @@ r"""Bundle geometry from the invariant metric: locked inertia, connection, shape
 
 All functions are pure functions of a system and its shape $q$; they vmap over $q$ and
 differentiate, and are compiled (`equinox.filter_jit`): called on concrete values, each
-runs as one program rather than op by op (the curvature of a 3-body chain lowered about
-300 programs, one per primitive). Notation of DESIGN §2: $G = [[I_r, B], [B^T, M]]$ in
-the variables $(\xi, \dot q)$ with $\xi = g^{-1}\dot g$ of the section frame.
+runs as one program rather than op by op (which lowers one program per primitive).
+Notation of architecture §2: $G = [[I_r, B], [B^T, M]]$ in the variables $(\xi, \dot q)$
+with $\xi = g^{-1}\dot g$ of the section frame.
 """
 
 import equinox as eqx
@@ -27,7 +27,7 @@ def metric(system: AbstractSystem, q: Float[Array, " d"]) -> Float[Array, "6+d 6
 
     **Returns:**
 
-    $G(q)$, shape `(6+d, 6+d)`: $T = \tfrac12[\xi;\dot q]^T G [\xi;\dot q]$ (DESIGN §2).
+    $G(q)$, shape `(6+d, 6+d)`: $T = \tfrac12[\xi;\dot q]^T G [\xi;\dot q]$ (architecture §2).
     """
     return system.metric(q)
 

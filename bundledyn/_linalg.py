@@ -2,9 +2,9 @@
 
 The vector field of a tree of bodies is a few dozen products of 3×3 to 6×6 matrices. On
 XLA's CPU every `dot` is a kernel of its own, which XLA does not fuse with its neighbours,
-and launching one (~0.3 µs) costs more than the arithmetic of a 6×6 product; a LAPACK
-factorization of a 6×6 matrix costs microseconds (with a pivot loop) and under `vmap` runs
-once per instance.
+and launching one costs more than the arithmetic of a 6×6 product; a LAPACK
+factorization of a 6×6 matrix costs more still (a call with a pivot loop) and under `vmap`
+runs once per instance.
 Written as broadcast products and sums (`einsum`, `matmul`) and closed-form inverses
 (`inverse_3x3`, `spd_inverse_6x6`) and unrolled Cholesky solves (`spd_solve`, up to 6×6),
 the same work is elementwise, fuses into a few kernels and batches for free. Larger
@@ -106,8 +106,8 @@ def _fused_einsum(letters, order, n_out, *operands):
 @functools.partial(_fused_einsum.defjvp, symbolic_zeros=True)
 def _fused_einsum_jvp(letters, order, n_out, primals, tangents):
     # The tangent sums with a `reduce`, whose transpose is a broadcast that fuses with the
-    # product. Transposing the explicit adds gave one `pad` kernel per contracted entry:
-    # the VJP of the 5-body chain's vector field cost 13x its evaluation, now 7x.
+    # product. Transposing the explicit adds gave one `pad` kernel per contracted entry,
+    # which made the vector field's VJP far dearer.
     out = _fused_einsum(letters, order, n_out, *primals)
     parts = [
         jnp.sum(_broadcast_product(letters, order, n_out, (*primals[:i], t, *primals[i + 1 :])), -1)
@@ -276,7 +276,7 @@ def _unrolled_spd_solve(M, b):
     for i in reversed(range(d)):
         x[i] = (y[i] - sum(L[k, i] * x[k] for k in range(i + 1, d))) / L[i, i]
     # The barrier keeps XLA from fusing the whole factorization into every consumer of x,
-    # each then recomputing it (an RKMK87 step of the 5-body chain 1.3x slower without it).
+    # each then recomputing it, which slows a whole solver step.
     return lax.optimization_barrier(jnp.stack(x))
 
 
@@ -292,8 +292,8 @@ def _unrolled_spd_solve_jvp(primals, tangents):
 
 # Taylor degree and largest scaling of `expm`: at ‖A‖∞ ≤ 1/4 the remainder of the degree-12
 # polynomial is ≤ e^{1/4} 4^{-13}/13! ≈ 2.6e-18, below half an ulp. Every squaring is
-# evaluated (and selected), so their number bounds the cost: 10 reach ‖S‖∞ = 256; 16 made
-# the affine body's vector field 50 % slower.
+# evaluated (and selected), so their number bounds the cost: 10 reach ‖S‖∞ = 256; more
+# squarings slow the affine body's vector field down.
 _EXPM_DEGREE = 12
 _EXPM_SQUARINGS = 10
 

@@ -1,6 +1,6 @@
 r"""Lie-group toolkit: SO(3), SE(3), their algebras and rotation parameterizations.
 
-Conventions (DESIGN §1), fixed for the whole library:
+Conventions (architecture §1), fixed for the whole library:
 
 - $g = (R, p) \in SE(3)$ is a $4\times4$ homogeneous matrix acting $x \mapsto Rx + p$.
 - A twist is $\xi = (\omega, v) \in \mathbb R^6$, **angular first**;

@@ -107,7 +107,7 @@ OPTIONS = {
 CHECKPOINTED = diffrax.RecursiveCheckpointAdjoint()
 # Where the solver is not the point (the chain under effects, its field's reverse pass), the
 # reference is forward-mode sensitivities: a derivation sharing nothing with either reverse
-# sweep, and a third of the checkpointed gradient's compile time.
+# sweep, and cheaper to compile than the checkpointed gradient.
 FORWARD = diffrax.ForwardMode()
 STORED = bd.StoredStepsAdjoint()
 AUTODIFF_FIELD = bd.StoredStepsAdjoint(field_reverse="autodiff")

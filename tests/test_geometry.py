@@ -145,7 +145,7 @@ def test_curvature_matches_small_loop_holonomy(make):
     """−log(holonomy)/ε² → curvature, the error shrinking like ε (seed 004 §2, structure eq.)."""
     system = make()
     q = 0.3 * jnp.ones(system.shape_dim) + 0.1 * jnp.arange(system.shape_dim)
-    # Called on concrete values, the curvature is one compiled program (not ~300 primitives).
+    # Called on concrete values, the curvature is one compiled program (not one per primitive).
     Omega, programs = lowerings(bd.curvature, system, q)
     assert programs <= 1
     estimate = jax.jit(lambda eps: curvature_by_holonomy(system, q, eps))

@@ -104,8 +104,8 @@ def _dexp_inv_applied_derivative(xi, eta):
     structure of `se3_dexp_inv` (`_se3.py`): with $\xi = (\omega, v)$, $\eta = (a, b)$
     and $P_c = \partial_\omega(J_r^{-1}(\omega)c)$,
     $M = \begin{pmatrix}P_a & 0\\ \partial_\omega(P_a v) + P_b & P_a\end{pmatrix}$.
-    Differentiating the SE(3) matrix directly gives the same, but batched over 13 stages
-    XLA's program for it took 45 µs against this one's 6 µs."""
+    Differentiating the SE(3) matrix directly (`jacfwd` of the $6\times6$ matrix) gives the
+    same, but XLA compiles it, batched over the stages, into a much slower program."""
     w, v, a, b = xi[:3], xi[3:], eta[:3], eta[3:]
 
     def applied(w, c):

@@ -12,7 +12,8 @@ _NO_TURN = 1e-3
 # return near the start, whose axis says little about the motion.
 _NET_SHARE = 0.25
 
-# Compiled once per number of poses: evaluated op by op, the batched conversion took ~1 s.
+# Compiled once per number of poses: op by op, the batched conversion compiles every
+# operation as a program of its own.
 _quaternions = jax.jit(jax.vmap(lie.quaternion_from_rotation))
 _logs = jax.jit(jax.vmap(lie.so3_log))
 
