@@ -2,8 +2,9 @@ r"""Effects a scene can name: gravity, gravity gradient, shape springs and dampe
 
 An effect turns the current kinematics into generalized forces in the variables
 $(\xi, \dot q)$: a wrench $F_b$ on the section frame (section axes, angular first) and a
-shape force $Q_H$. Conservative effects also give their potential $\Pi(t, g, q)$, and their
-forces are $F_b = -\partial_\eta \Pi(g\exp\hat\eta, q)|_0$ (the seed's $\mathcal L\Pi$ with a sign)
+shape force $Q_H$. Conservative effects (`AbstractPotential`) are given by their potential
+$\Pi(t, g, q)$, which the energy adds; their forces are
+$F_b = -\partial_\eta \Pi(g\exp\hat\eta, q)|_0$ (the seed's $\mathcal L\Pi$ with a sign)
 and $Q_H = -\partial_q\Pi$, by autodiff.
 Only the effects a scene names enter its compiled vector field.
 Their `potential` and `generalized_force` are compiled (`equinox.filter_jit`): called on
@@ -52,7 +53,11 @@ def mass_and_centre(I_r: Float[Array, "6 6"]):
 
 
 class AbstractEffect(eqx.Module):
-    """Something that acts on the system: it supplies generalized forces $(F_b, Q_H)$."""
+    """Something that acts on the system: it supplies generalized forces $(F_b, Q_H)$.
+
+    A conservative effect is an `AbstractPotential`: it has a potential, which
+    `Trajectory.energy` adds to the kinetic energy; other effects have none.
+    """
 
     @abc.abstractmethod
     def generalized_force(
@@ -60,16 +65,16 @@ class AbstractEffect(eqx.Module):
     ) -> tuple[Float[Array, "6"], Float[Array, " d"]]:
         """The generalized force `(F_b (6,), Q_H (d,))` at the kinematics `kin`."""
 
-    def potential(self, system: AbstractSystem, t, g, q):
-        """The potential energy, or `None` for a non-conservative effect."""
-        return None
-
 
 class AbstractPotential(AbstractEffect):
-    r"""A conservative effect given by its potential $\Pi(t, g, q)$; forces by autodiff."""
+    r"""A conservative effect given by its potential $\Pi(t, g, q)$; forces by autodiff.
+
+    The energy (`Trajectory.energy`) is the kinetic energy plus the potentials of the
+    scene's effects that are `AbstractPotential`s.
+    """
 
     @abc.abstractmethod
-    def potential(self, system: AbstractSystem, t, g, q):
+    def potential(self, system: AbstractSystem, t, g, q) -> Float[Array, ""]:
         r"""$\Pi(t, g, q)$, a scalar."""
 
     @eqx.filter_jit

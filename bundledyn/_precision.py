@@ -12,7 +12,7 @@ import jax.numpy as jnp
 import numpy as np
 from jax.typing import ArrayLike
 
-from ._systems._validation import concrete
+from ._validation import concrete
 
 # Frames in these folders are the library's, not the user's: warnings skip past them.
 LIBRARY_FOLDERS = tuple(

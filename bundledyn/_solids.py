@@ -13,7 +13,7 @@ import numpy as np
 from jaxtyping import Array, Float
 
 from ._systems._rigid_body import RigidBody
-from ._systems._validation import check_shape, concrete
+from ._validation import check_shape, concrete
 
 
 def _positive(name, value):

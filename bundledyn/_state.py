@@ -6,7 +6,7 @@ import jax.tree_util as jtu
 import numpy as np
 from jaxtyping import Array, Float
 
-from ._systems._validation import concrete
+from ._validation import concrete
 
 _ORTHOGONALITY = 1e-8
 _NOT_FINITE = "`State` has a NaN or infinite entry."

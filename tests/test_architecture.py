@@ -1,4 +1,5 @@
-"""The package's structure: imports flow one way (DESIGN §4), and the type checker passes."""
+"""The package's structure: imports flow one way (DESIGN §4), between modules and between
+folders, and the type checker passes."""
 
 import ast
 import json
@@ -13,11 +14,11 @@ PACKAGE = pathlib.Path(bundledyn.__file__).parent
 
 # DESIGN §4's layers, lowest first: a module may import its own layer and those before it.
 LAYERS = (
-    ("lie", {"_lie", "lie", "_linalg", "_xla_flags", "_files", "_paths"}),
+    ("lie", {"_lie", "lie", "_linalg", "_validation", "_xla_flags", "_files", "_paths"}),
     ("systems", {"_systems", "_solids", "_state", "_precision"}),
     ("geometry", {"_geometry", "_holonomy"}),
     ("dynamics", {"_dynamics", "_dynamics_vjp"}),
-    ("scene", {"_effects", "_frames", "_scene"}),
+    ("scene", {"_effects", "_frames", "_modes", "_scene"}),
     ("term", {"_term", "_reverse_term"}),
     ("integrators", {"_solver"}),
     ("simulate", {"_simulate", "_trajectory"}),
@@ -73,15 +74,16 @@ def _layer(module: str) -> int:
     raise AssertionError(f"{module} is in no layer of DESIGN §4: add it to LAYERS")
 
 
-def test_no_import_cycles(graph):
-    """Tarjan's strongly connected components: each must be a single module."""
+def _cycles(graph: dict[str, set[str]]) -> list[list[str]]:
+    """The import loops of `graph`: its strongly connected components of more than one node
+    (Tarjan's algorithm), each sorted."""
     index, low, stack, on_stack, cycles = {}, {}, [], set(), []
 
     def visit(v):
         index[v] = low[v] = len(index)
         stack.append(v)
         on_stack.add(v)
-        for w in graph[v]:
+        for w in graph.get(v, ()):
             if w not in index:
                 visit(w)
                 low[v] = min(low[v], low[w])
@@ -101,7 +103,88 @@ def test_no_import_cycles(graph):
     for v in graph:
         if v not in index:
             visit(v)
+    return cycles
+
+
+def _folder_graphs(graph: dict[str, set[str]]) -> dict[str, dict[str, set[str]]]:
+    """For each folder (package) of the module graph, the graph of its entries: each module
+    directly in it, and each subfolder as one node (importing any module of a subfolder runs
+    the subfolder's `__init__`, so a subfolder is imported as a whole). An entry imports
+    another where a module inside the one imports a module inside the other. The folder's
+    own `__init__` is no entry: it imports its entries to gather them.
+
+    A loop between the entries of a folder is a loop between folders even where the modules
+    form none: `_systems/_mujoco_state.py` importing `_state.py`, which imports
+    `_systems/_validation.py`, is the loop `_systems` -> `_state` -> `_systems`.
+    """
+    folders = {m.rsplit(".", 1)[0] for m in graph if "." in m}
+
+    def entry(folder, module):
+        head = module[len(folder) + 1 :].split(".")[0]
+        return f"{folder}.{head}"
+
+    out = {}
+    for folder in sorted(folders):
+        inside = [m for m in graph if m.startswith(folder + ".")]
+        entries = {entry(folder, m): set() for m in inside}
+        for a in inside:
+            for b in graph[a]:
+                if b.startswith(folder + ".") and entry(folder, a) != entry(folder, b):
+                    entries[entry(folder, a)].add(entry(folder, b))
+        out[folder] = entries
+    return out
+
+
+def _folder_loops(graph: dict[str, set[str]]) -> list[str]:
+    """Each loop between a folder's entries, with the module imports that close it."""
+
+    def inside(module, e):
+        return module == e or module.startswith(e + ".")
+
+    loops = []
+    for folder, entries in _folder_graphs(graph).items():
+        for loop in _cycles(entries):
+            imports = sorted(
+                f"{a} imports {b}"
+                for a, targets in graph.items()
+                for b in targets
+                for ea in loop
+                for eb in loop
+                if ea != eb and inside(a, ea) and inside(b, eb)
+            )
+            loops.append(f"in {folder}: {' <-> '.join(loop)} ({'; '.join(imports)})")
+    return loops
+
+
+def test_no_import_cycles(graph):
+    """No loop between modules: each strongly connected component is a single module."""
+    cycles = _cycles(graph)
     assert not cycles, cycles
+
+
+def test_no_import_cycles_between_folders(graph):
+    """No loop between folders (`_folder_graphs`): every folder's entries import one way,
+    so importing any module of a subfolder never comes back to the module importing it."""
+    loops = _folder_loops(graph)
+    assert not loops, loops
+
+
+def test_a_loop_through_a_folder_is_found():
+    """The loop that `_validation.py` ended (`State` used a check in `_systems`, whose
+    `_mujoco_state.py` imports `State`): no module loop, one folder loop."""
+    graph = {
+        "bundledyn": {"bundledyn._state", "bundledyn._systems"},
+        "bundledyn._state": {"bundledyn._systems._validation"},
+        "bundledyn._systems": {"bundledyn._systems._mujoco_state"},
+        "bundledyn._systems._mujoco_state": {"bundledyn._state"},
+        "bundledyn._systems._validation": set(),
+    }
+    assert not _cycles(graph)
+    assert _folder_loops(graph) == [
+        "in bundledyn: bundledyn._state <-> bundledyn._systems "
+        "(bundledyn._state imports bundledyn._systems._validation; "
+        "bundledyn._systems._mujoco_state imports bundledyn._state)"
+    ]
 
 
 def test_no_import_from_a_higher_layer(graph):
@@ -123,7 +206,7 @@ def test_the_walker_sees_lazy_and_relative_imports(graph):
 
 
 def test_pyright_passes():
-    """pyright in basic mode (`[tool.pyright]` in pyproject.toml) on the package."""
+    """pyright in standard mode (`[tool.pyright]` in pyproject.toml) on the package."""
     result = subprocess.run(
         ["pyright", "--outputjson"], cwd=PACKAGE.parent, capture_output=True, text=True, timeout=600
     )

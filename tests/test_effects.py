@@ -80,3 +80,25 @@ def test_gravity_does_the_work_of_its_potential():
     gamma = 9.81 * gravity.direction
     expected = -SYSTEM.mass @ (centres @ gamma)
     np.testing.assert_allclose(potential(0.0), expected, rtol=1e-12)
+
+
+def test_the_energy_adds_the_potentials_of_the_potential_effects_only():
+    """`Trajectory.energy` is the kinetic energy plus the potential of each effect that is an
+    `AbstractPotential`; dampers and forces have none (and no `potential` method)."""
+    gravity, spring = bd.Gravity(), bd.ShapeSpring(2.0, 0.1)
+    damper, force = bd.ShapeDamper(0.5), bd.ShapeForce(lambda t, q, qdot: q)
+    assert isinstance(spring, bd.AbstractPotential) and isinstance(gravity, bd.AbstractEffect)
+    assert not isinstance(damper, bd.AbstractPotential) and not hasattr(damper, "potential")
+    scene = bd.Scene(SYSTEM, [gravity, damper, spring, force])
+    n = 2
+    ts = jnp.array([KIN.t, KIN.t + 1.0])
+    qs = jnp.stack([KIN.q, 2 * KIN.q])
+    gs, xis, qdots = (jnp.stack([x] * n) for x in (KIN.g, KIN.xi, KIN.qdot))
+    traj = bd.Trajectory(ts, gs, qs, xis, qdots, xis, {}, None, scene)
+    expected = [
+        bd.kinetic_energy(SYSTEM, q, KIN.xi, KIN.qdot)
+        + gravity.potential(SYSTEM, t, KIN.g, q)
+        + spring.potential(SYSTEM, t, KIN.g, q)
+        for t, q in zip(ts, qs, strict=True)
+    ]
+    np.testing.assert_allclose(traj.energy(), jnp.stack(expected), rtol=1e-13)

@@ -203,3 +203,27 @@ def test_checks_do_not_change_gradients_and_inertia_gradients_are_symmetric():
     h = 1e-6
     fd = (loss(J + h * E) - loss(J - h * E)) / (2 * h)
     np.testing.assert_allclose(jnp.sum(grad * E), fd, rtol=1e-7)
+
+
+@pytest.mark.parametrize(
+    "cls, abstract",
+    [
+        (bd.AbstractMetricJet, {"along", "along_applied", "forms", "forms_along", "along_both",
+                                "derivative"}),
+        (bd.AbstractEffect, {"generalized_force"}),
+    ],
+    ids=["metric-jet", "effect"],
+)  # fmt: skip
+def test_the_extension_points_have_abstract_methods_only(cls, abstract):
+    """An abstract class that users subclass holds no behaviour to override: its methods are
+    all abstract (the metric jet's shared forms are module-level functions its final jets
+    call; a potential is `AbstractPotential`'s, not every effect's)."""
+    methods = {
+        name
+        for name, value in vars(cls).items()
+        if callable(value) and not (name.startswith("__") and name.endswith("__"))
+    }
+    assert methods == abstract
+    assert all(getattr(cls, name).__isabstractmethod__ for name in methods)
+    assert not hasattr(bd.AbstractEffect, "potential")
+    assert bd.AbstractPotential.potential.__isabstractmethod__

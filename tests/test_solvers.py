@@ -16,6 +16,7 @@ embedded system (rtol = atol = 1e-13), independent of diffrax and of the Lie sol
 import functools
 import itertools
 import math
+import re
 
 import diffrax
 import equinox as eqx
@@ -31,6 +32,7 @@ from bundledyn import AbstractBodyTerm, lie
 from bundledyn._solver._lie_euler import LieEuler
 from bundledyn._solver._rkmk import RKMK4, RKMK54, RKMK87
 from bundledyn._solver._tableau import (
+    LieButcherTableau,
     dopri5_tableau,
     dopri8_tableau,
     euler_tableau,
@@ -289,6 +291,44 @@ def test_tableaus():
         for n in range(1, order + 1):
             assert order_residual(bt, tab, n, theta) < 1e-13, (order, n)
         assert order_residual(bt, tab, order + 1, theta) > 1e-6, order
+
+
+# Heun's method with the Euler step as its embedded solution and a quadratic dense output.
+HEUN = dict(
+    a_lower=(np.array([1.0]),),
+    b_sol=np.array([0.5, 0.5]),
+    c=np.array([1.0]),
+    dense=np.array([[1.0, 0.0], [-0.5, 0.5]]),
+    b_error=np.array([-0.5, 0.5]),
+)
+
+
+@pytest.mark.parametrize(
+    "change, message",
+    [
+        (dict(c=np.array([0.9])), "row-sum condition Σ_j a_2j = c_2 of stage 2: the residual "
+         "Σ_j a_2j - c_2 is 0.1"),
+        (dict(b_sol=np.array([0.5, 0.6]), dense=np.array([[1.0, 0.0], [-0.5, 0.6]])),
+         "first-order condition Σ_i b_i = 1: the residual Σ_i b_i - 1 is 0.1"),
+        (dict(dense=np.array([[1.0, 0.0], [-0.5, 0.6]])),
+         "end condition b_i(1) = b_i, b_i(1) = Σ_m B_m-1,i: the residual b_2(1) - b_2 is 0.1"),
+        (dict(b_error=np.array([-0.5, 0.6])),
+         "embedded solution's first-order condition Σ_i (b_i - b̂_i) = 0: the residual "
+         "Σ_i (b_i - b̂_i) is 0.1"),
+        (dict(c=np.array([1.0, 1.0])), "`c` must hold the 1 nodes"),
+        (dict(a_lower=(np.array([1.0, 0.0]),)), "row 2 of `a_lower` (stage 2) must have 1 entries"),
+        (dict(dense=np.array([1.0, 0.0])), "`dense` must have shape (degree, 2)"),
+        (dict(b_error=np.array([0.0])), "`b_error` must have shape (2,)"),
+    ],
+    ids=["row-sum", "weights", "dense-end", "error-weights", "nodes", "row", "dense", "error"],
+)  # fmt: skip
+def test_a_tableau_that_breaks_an_order_condition_is_refused(change, message):
+    """Each order condition every tableau meets, and each shape, is checked at construction,
+    with the condition and its residual in the message; Heun's tableau itself passes."""
+    heun = LieButcherTableau(**HEUN)
+    assert heun.num_stages == 2 and heun.step_stages == 2 and not heun.fsal
+    with pytest.raises(ValueError, match=re.escape(message)):
+        LieButcherTableau(**{**HEUN, **change})
 
 
 # --------------------------------------------------------------------------- accuracy

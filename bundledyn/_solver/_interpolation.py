@@ -40,8 +40,10 @@ class LieLocalInterpolation(AbstractLocalInterpolation):
         coefficients of $\Theta$), other leaves `(d, *leaf.shape)`.
     """
 
-    t0: Array
-    t1: Array
+    # diffrax declares `t0`, `t1` class variables to type checkers (for properties); here
+    # they are fields, as in diffrax's own interpolations.
+    t0: Array  # pyright: ignore[reportIncompatibleVariableOverride]
+    t1: Array  # pyright: ignore[reportIncompatibleVariableOverride]
     y0: PyTree[Array]
     coeffs: PyTree[Array]
 

@@ -7,9 +7,10 @@ tableau gives an order-$p$ Lie-group method (Munthe-Kaas 1999). Each tableau als
 which the solvers use for dense output in the same chart.
 """
 
-from dataclasses import dataclass, field
+from typing import Any, cast
 
 import diffrax
+import equinox as eqx
 import numpy as np
 
 __all__ = [
@@ -21,11 +22,18 @@ __all__ = [
 ]
 
 
-@dataclass(frozen=True)
-class LieButcherTableau:
+def _rows(a_lower) -> tuple[np.ndarray, ...]:
+    return tuple(np.asarray(row) for row in a_lower)
+
+
+def _optional(b_error) -> np.ndarray | None:
+    return None if b_error is None else np.asarray(b_error)
+
+
+class LieButcherTableau(eqx.Module):
     r"""An explicit Butcher tableau with an optional embedded pair and a dense output.
 
-    Not a pytree: a static description, used as a class-level attribute of a solver.
+    A static description, used as a class-level attribute of a solver (not as a field).
 
     **Arguments:**
 
@@ -40,52 +48,116 @@ class LieButcherTableau:
         (the difference between the propagated and the embedded solution, as in
         `diffrax.ButcherTableau`); `None` for a method without an error estimate.
 
+    Construction checks the shapes and the order conditions every tableau meets (each
+    to `numpy.allclose`'s tolerance), and raises `ValueError` naming the one that fails
+    and its residual: the row sums $\sum_j a_{ij} = c_i$, the consistency
+    $\sum_i b_i = 1$, the continuous extension's end $b_i(1) = b_i$ and, with an error
+    estimate, the embedded solution's consistency $\sum_i (b_i - \hat b_i) = 0$.
+
     Derived: `num_stages`, `step_stages` (the leading stages that the propagated solution
     and the error estimate use; later ones serve the dense output only), `fsal` (the last
     stage is evaluated at the propagated solution: $a_{s,j} = b_j$, $b_s = 0$, $c_s = 1$),
     the full `(s, s)` matrix `a` and the full node vector `c_full`.
     """
 
-    a_lower: tuple[np.ndarray, ...]
-    b_sol: np.ndarray
-    c: np.ndarray
-    dense: np.ndarray
-    b_error: np.ndarray | None = None
+    a_lower: tuple[np.ndarray, ...] = eqx.field(converter=_rows)
+    b_sol: np.ndarray = eqx.field(converter=np.asarray)
+    c: np.ndarray = eqx.field(converter=np.asarray)
+    dense: np.ndarray = eqx.field(converter=np.asarray)
+    b_error: np.ndarray | None = eqx.field(default=None, converter=_optional)
 
-    num_stages: int = field(init=False)
-    step_stages: int = field(init=False)
-    fsal: bool = field(init=False)
-    a: np.ndarray = field(init=False)
-    c_full: np.ndarray = field(init=False)
-
-    def __post_init__(self):
+    def __check_init__(self):
+        name = "`LieButcherTableau`"
+        if self.b_sol.ndim != 1 or self.b_sol.shape[0] < 1:
+            raise ValueError(
+                f"{name}: `b_sol` must be the (s,) weights of the s >= 1 stages, got shape "
+                f"{self.b_sol.shape}."
+            )
         s = self.b_sol.shape[0]
-        assert self.b_sol.ndim == 1
-        assert self.c.shape == (s - 1,)
-        assert len(self.a_lower) == s - 1
-        a = np.zeros((s, s))
+        if self.c.shape != (s - 1,) or len(self.a_lower) != s - 1:
+            raise ValueError(
+                f"{name}: with {s} weights `b_sol`, `c` must hold the {s - 1} nodes "
+                f"c_2..c_s and `a_lower` the {s - 1} rows 2..s; got `c` of shape "
+                f"{self.c.shape} and {len(self.a_lower)} rows."
+            )
         for i, row in enumerate(self.a_lower):
-            assert row.shape == (i + 1,)
-            assert np.allclose(row.sum(), self.c[i])
-            a[i + 1, : i + 1] = row
-        assert np.allclose(self.b_sol.sum(), 1.0)
-        assert self.dense.ndim == 2 and self.dense.shape[1] == s
-        assert np.allclose(self.dense.sum(axis=0), self.b_sol)
-        if self.b_error is not None:
-            assert self.b_error.shape == (s,)
-            assert np.allclose(self.b_error.sum(), 0.0)
-        fsal = (
+            if row.shape != (i + 1,):
+                raise ValueError(
+                    f"{name}: row {i + 2} of `a_lower` (stage {i + 2}) must have {i + 1} "
+                    f"entries a_{i + 2},1..a_{i + 2},{i + 1}, got shape {row.shape}."
+                )
+        if self.dense.ndim != 2 or self.dense.shape[1] != s:
+            raise ValueError(
+                f"{name}: `dense` must have shape (degree, {s}), one column per stage, got "
+                f"{self.dense.shape}."
+            )
+        if self.b_error is not None and self.b_error.shape != (s,):
+            raise ValueError(
+                f"{name}: `b_error` must have shape ({s},), got {self.b_error.shape}; pass "
+                "None for a method without an error estimate."
+            )
+        for i, row in enumerate(self.a_lower):
+            if not np.allclose(row.sum(), self.c[i]):
+                k = i + 2
+                raise ValueError(
+                    f"{name} breaks the row-sum condition Σ_j a_{k}j = c_{k} of stage {k}: "
+                    f"the residual Σ_j a_{k}j - c_{k} is {row.sum() - self.c[i]:.3g}. Row {k} "
+                    f"of the matrix (`a_lower[{i}]`) must sum to the stage's node `c[{i}]`."
+                )
+        if not np.allclose(self.b_sol.sum(), 1.0):
+            raise ValueError(
+                f"{name} breaks the first-order condition Σ_i b_i = 1: the residual "
+                f"Σ_i b_i - 1 is {self.b_sol.sum() - 1.0:.3g}. The weights `b_sol` must sum "
+                "to 1."
+            )
+        end = self.dense.sum(axis=0) - self.b_sol
+        if not np.allclose(self.dense.sum(axis=0), self.b_sol):
+            i = int(np.argmax(np.abs(end)))
+            raise ValueError(
+                f"{name} breaks the dense output's end condition b_i(1) = b_i, "
+                f"b_i(1) = Σ_m B_m-1,i: the residual b_{i + 1}(1) - b_{i + 1} is "
+                f"{end[i]:.3g} (the largest, stage {i + 1}). Each column of `dense` must sum "
+                "to its stage's weight in `b_sol`, so that the dense output ends at the step's "
+                "solution."
+            )
+        if self.b_error is not None and not np.allclose(self.b_error.sum(), 0.0):
+            raise ValueError(
+                f"{name} breaks the embedded solution's first-order condition "
+                f"Σ_i (b_i - b̂_i) = 0: the residual Σ_i (b_i - b̂_i) is "
+                f"{self.b_error.sum():.3g}. `b_error` holds the weights b - b̂ of the error "
+                "estimate, both of which sum to 1, so it must sum to 0."
+            )
+
+    @property
+    def num_stages(self) -> int:
+        return self.b_sol.shape[0]
+
+    @property
+    def step_stages(self) -> int:
+        used = (self.b_sol != 0) | (0 if self.b_error is None else self.b_error != 0)
+        return int(np.flatnonzero(used)[-1]) + 1
+
+    @property
+    def fsal(self) -> bool:
+        s = self.num_stages
+        return bool(
             s > 1
             and self.b_sol[-1] == 0
             and bool(np.all(self.a_lower[-1] == self.b_sol[:-1]))
             and self.c[-1] == 1
         )
-        used = (self.b_sol != 0) | (0 if self.b_error is None else self.b_error != 0)
-        object.__setattr__(self, "num_stages", s)
-        object.__setattr__(self, "step_stages", int(np.flatnonzero(used)[-1]) + 1)
-        object.__setattr__(self, "fsal", fsal)
-        object.__setattr__(self, "a", a)
-        object.__setattr__(self, "c_full", np.concatenate([np.zeros(1), self.c]))
+
+    @property
+    def a(self) -> np.ndarray:
+        s = self.num_stages
+        a = np.zeros((s, s))
+        for i, row in enumerate(self.a_lower):
+            a[i + 1, : i + 1] = row
+        return a
+
+    @property
+    def c_full(self) -> np.ndarray:
+        return np.concatenate([np.zeros(1), self.c])
 
 
 # Lie–Euler: one stage, linear (geodesic) dense output.
@@ -163,7 +235,8 @@ def _dopri8():
     ref = diffrax.Dopri8.tableau
     # diffrax's dense output: y(θ) = y0 + Σ_i θ polyval(E[i], θ) k_i with E of shape
     # (s, d) (highest power first), so B[m-1, i] = E[i, d-m]. d = 6: a sextic.
-    eval_coeffs = np.asarray(diffrax.Dopri8.interpolation_cls.eval_coeffs, dtype=np.float64)
+    interpolation = cast(Any, diffrax.Dopri8.interpolation_cls)  # a class, typed as a callable
+    eval_coeffs = np.asarray(interpolation.eval_coeffs, dtype=np.float64)
     dense = eval_coeffs[:, ::-1].T.copy()
     # The published decimals give b_i(1) = Σ_m B[m-1, i] ≠ b_i by up to 1e-12 (against
     # coefficients up to ~120), so the dense output would miss the step's end by that

@@ -1,4 +1,4 @@
-"""An affinely deformable body: x = c + F X (seed 004, §4; DESIGN §2)."""
+"""An affinely deformable body: x = c + F X (seed 004, §4; architecture §2)."""
 
 import itertools
 from typing import ClassVar
@@ -11,9 +11,10 @@ from jaxtyping import Array, Float
 
 from .. import lie
 from .._linalg import expm
+from .._validation import check_shape
 from ._base import AbstractInertialSystem
 from ._metric_jet import DenseMetricJet
-from ._validation import check_mass, check_shape, check_spd, checked_mass, checked_spd
+from ._validation import check_mass, check_spd, checked_mass, checked_spd
 
 _SYM_ROWS = (0, 1, 2, 0, 0, 1)
 _SYM_COLS = (0, 1, 2, 1, 2, 2)

@@ -1,6 +1,7 @@
 r"""The abstract mechanical system: an invariant metric in a local trivialization."""
 
 import abc
+from typing import TYPE_CHECKING, ClassVar
 
 import equinox as eqx
 import jax
@@ -99,7 +100,10 @@ class AbstractInertialSystem(AbstractSystem):
     construction (the affine body): their $c$ is not a parameter.
     """
 
-    fixed_centres: eqx.AbstractClassVar[bool]
+    if TYPE_CHECKING:  # pyright takes only `typing.ClassVar` itself for a class variable
+        fixed_centres: ClassVar[bool]
+    else:
+        fixed_centres: eqx.AbstractClassVar[bool]
 
     @abc.abstractmethod
     def pseudo_inertias(self) -> Float[Array, "n 4 4"]:

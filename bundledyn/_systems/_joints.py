@@ -23,7 +23,7 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Float
 
-from ._validation import check_shape, concrete
+from .._validation import check_shape, concrete
 
 
 def _unit(name: str, axis) -> Array:

@@ -5,9 +5,9 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Float
 
+from .._validation import check_shape, concrete
 from ._joints import AbstractJoint
 from ._rigid_body import RigidBody
-from ._validation import check_shape, concrete
 
 
 class Link(eqx.Module):

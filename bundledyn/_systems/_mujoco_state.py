@@ -73,7 +73,7 @@ def state_from_mujoco(
 ) -> State:
     r"""bundledyn's `State` $(g, q, \xi, \dot q)$ from MuJoCo's `qpos`, `qvel`.
 
-    Conventions (DESIGN §2): $g$ is the pose of the section frame (the root body's frame
+    Conventions (architecture §2): $g$ is the pose of the section frame (the root body's frame
     for an imported model), $\xi = g^{-1}\dot g = (\omega, v)$ its body velocity. The free
     joint's `qpos` is (position, quaternion $w$ first) and its `qvel` is (linear velocity
     of the body origin in **world** axes, angular velocity in **body** axes), so

@@ -11,6 +11,7 @@ from jaxtyping import Array, Float
 from .. import lie
 from .._lie._so3 import so3_dexp_derivative
 from .._linalg import einsum, matmul, take
+from .._validation import check_shape, concrete
 from ._base import AbstractInertialSystem, autodiff_metric_jet
 from ._link import Link
 from ._mujoco_import import ModelParts, parts_from_mjcf, parts_from_urdf
@@ -19,7 +20,7 @@ from ._rigid_body import RigidBody, spatial_inertia
 from ._screws import pose, unit_screw_exp, unit_screws
 from ._tree import Tree, column_tables, tree_tables
 from ._tree_metric import BallColumnDerivative, TreeMetricJet, composite_metric
-from ._validation import check_shape, checked_inertia, checked_mass, concrete
+from ._validation import checked_inertia, checked_mass
 
 
 class AbstractMultibody(AbstractInertialSystem):
@@ -129,7 +130,7 @@ class Multibody(AbstractMultibody):
     joint's factors in order). The metric is
     $G = \sum_a \hat J_a^T \operatorname{Ad}_{r_a^{-1}}^T M_a \operatorname{Ad}_{r_a^{-1}} \hat J_a$
     with $\hat J_a = [1 \mid Z \odot \text{path}_a]$, $Z_j = \operatorname{Ad}_{r_j} S_j$ the
-    joint screws in the section frame (DESIGN §2), computed for all bodies at once, plus the
+    joint screws in the section frame (architecture §2), computed for all bodies at once, plus the
     rotor inertia of the joints' drives: $\tfrac12\sum_j a_j \dot q_j^2$ adds $\operatorname{diag}(0_6, a)$
     (MuJoCo's `armature`). It involves neither $g$ nor $\xi$, so the metric stays
     $SE(3)$-invariant and every geometric quantity follows from it.
@@ -318,7 +319,7 @@ class Multibody(AbstractMultibody):
         return bodies + self._rotor_inertia(q.dtype)
 
     def metric_jet(self, q):
-        r"""The metric and its derivative contractions in closed form (screw theory, DESIGN §4).
+        r"""The metric and its derivative contractions in closed form (screw theory, architecture §4.3).
 
         Moving joint $k$ moves every node below it by the twist $Z_k$ (base frame), so
         $\partial Z_j/\partial q_k = \operatorname{ad}_{Z_k} Z_j$ for $j$ at or below $k$ (plus, for a
@@ -459,7 +460,9 @@ class Resectioned(AbstractMultibody):
     section: int = eqx.field(static=True)
 
     # Written out: the `__init__` a type checker derives asks for the abstract fields too,
-    # which the properties below provide.
+    # which the properties below provide. equinox takes a property for an `AbstractVar`;
+    # pyright takes an `AbstractVar` for a writable attribute, which a property is not (a
+    # Module is frozen anyway): hence its `ignore`s.
     def __init__(self, tree: Multibody, section: int):
         self.tree = tree
         self.section = section
@@ -471,23 +474,23 @@ class Resectioned(AbstractMultibody):
             )
 
     @property
-    def mass(self):
+    def mass(self):  # pyright: ignore[reportIncompatibleVariableOverride]
         return self.tree.mass
 
     @property
-    def com(self):
+    def com(self):  # pyright: ignore[reportIncompatibleVariableOverride]
         return self.tree.com
 
     @property
-    def inertia(self):
+    def inertia(self):  # pyright: ignore[reportIncompatibleVariableOverride]
         return self.tree.inertia
 
     @property
-    def names(self):
+    def names(self):  # pyright: ignore[reportIncompatibleVariableOverride]
         return self.tree.names
 
     @property
-    def tables(self):
+    def tables(self):  # pyright: ignore[reportIncompatibleVariableOverride]
         return self.tree.tables
 
     @property

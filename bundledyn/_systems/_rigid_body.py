@@ -7,16 +7,11 @@ import jax.numpy as jnp
 from jaxtyping import Array, Float
 
 from .. import lie
+from .._validation import check_shape
 from ._base import AbstractInertialSystem
 from ._metric_jet import DenseMetricJet
 from ._pseudo_inertia import inertial_from_pseudo_inertia, pseudo_inertia
-from ._validation import (
-    check_inertia,
-    check_mass,
-    check_shape,
-    checked_inertia,
-    checked_mass,
-)
+from ._validation import check_inertia, check_mass, checked_inertia, checked_mass
 
 
 def spatial_inertia(mass, com, inertia):

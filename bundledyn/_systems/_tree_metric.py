@@ -8,7 +8,7 @@ from jaxtyping import Array, Float
 from .. import lie
 from .._lie._so3 import so3_dexp_second_derivative_along
 from .._linalg import einsum, matmul, take
-from ._metric_jet import AbstractMetricJet
+from ._metric_jet import AbstractMetricJet, derivative_by_along
 
 
 def composite_metric(inertias, Z, path, at_or_above, strictly_above):
@@ -219,3 +219,6 @@ class TreeMetricJet(AbstractMetricJet):
         Pi, dPi = self._subtree_sums(p), self._subtree_sums(f)
         half = -jnp.einsum("ikx,jkx->ijk", dZN, Pi) - jnp.einsum("ikx,jkx->ijk", ZN, dPi)
         return self._along_applied(dZ, p, f), half + jnp.swapaxes(half, 0, 1)
+
+    def derivative(self):
+        return derivative_by_along(self)

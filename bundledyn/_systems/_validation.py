@@ -1,33 +1,15 @@
 """Checks of the systems' parameters: at construction on concrete values, and at run time.
 
 The construction checks raise `ValueError` with the fix and skip traced values; their
-run-time forms (`checked_*`) attach `equinox.error_if` to values that may be traced.
+run-time forms (`checked_*`) attach `equinox.error_if` to values that may be traced. The
+checks of any value (`concrete`, `check_shape`) are the package's, in `_validation.py`.
 """
 
 import equinox as eqx
 import jax.numpy as jnp
 import numpy as np
 
-
-def concrete(x):
-    """The value of `x` as a NumPy array, or `None` when `x` is a tracer (inside jit/vmap/grad).
-
-    Validation runs on concrete inputs only: a module rebuilt from tracers by a JAX
-    transformation was validated when it was first built.
-    """
-    try:
-        return np.asarray(x)
-    except Exception:
-        return None
-
-
-def check_shape(name: str, value, shape: tuple[int, ...]) -> None:
-    """Raise `ValueError` naming `name` unless `value` has exactly `shape`."""
-    if tuple(np.shape(value)) != shape:
-        raise ValueError(
-            f"`{name}` must have shape {shape}, got {tuple(np.shape(value))}; pass a "
-            f"{'scalar' if shape == () else 'array of that shape'}."
-        )
+from .._validation import concrete
 
 
 def check_mass(name: str, mass) -> None:
