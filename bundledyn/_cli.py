@@ -51,19 +51,19 @@ class _Failure(Exception):
     """A run that went wrong in a way the user can fix; reported in one line, exit code 1."""
 
 
-def _summary(scene_file, traj, elapsed):
+def _summary(scene_file, traj, diagnostics, elapsed):
     """Print what was simulated and its diagnostics, each quantity with the frame it is in:
     poses in the scene's frame, energy and spatial momentum in the Galilean frame."""
     import numpy as np
 
     from ._viz._frame_names import GALILEAN, frame_name
 
-    energy = np.asarray(traj.energy())
-    momentum = np.asarray(traj.spatial_momentum())
+    energy = np.asarray(diagnostics.energy)
+    momentum = np.asarray(diagnostics.spatial_momentum)
     scene = scene_file.scene
     print(
         f"  system: {type(scene.system).__name__}, {scene.system.shape_dim} shape coordinates; "
-        f"{len(scene.effects)} effects; shape {type(scene.shape).__name__.lower()}; "
+        f"{len(scene.effects)} effects; mode {type(scene.mode).__name__}; "
         f"seen from {frame_name(scene)}"
     )
     print(
@@ -80,16 +80,16 @@ def _summary(scene_file, traj, elapsed):
     )
     print(
         f"  poses in {frame_name(scene)}: rotations orthogonal to "
-        f"{float(traj.orthogonality_error().max()):.1e}"
+        f"{float(diagnostics.orthogonality_error.max()):.1e}"
     )
 
 
-def _write_pictures(scene_file, traj, out, stem):
+def _write_pictures(scene_file, traj, diagnostics, out, stem):
     from . import viz
 
     written = [out / f"{stem}_motion.png", out / f"{stem}_drift.png"]
     viz.plot_motion(traj, path=written[0])
-    viz.plot_drift(traj, path=written[1])
+    viz.plot_drift(traj, path=written[1], diagnostics=diagnostics)
     if scene_file.output["animation"]:
         written.append(
             viz.animate(
@@ -102,7 +102,7 @@ def _write_pictures(scene_file, traj, out, stem):
     return written
 
 
-def _write_trajectory(scene_file, traj, path, elapsed):
+def _write_trajectory(scene_file, traj, diagnostics, path, elapsed):
     import jax
     import numpy as np
 
@@ -128,8 +128,8 @@ def _write_trajectory(scene_file, traj, path, elapsed):
             xi=traj.xi,
             qdot=traj.qdot,
             U=traj.U,
-            energy=traj.energy(),
-            spatial_momentum=traj.spatial_momentum(),
+            energy=diagnostics.energy,
+            spatial_momentum=diagnostics.spatial_momentum,
             scene=np.array(scene_file.text),
             metadata=np.array(json.dumps(metadata)),
         )
@@ -146,11 +146,12 @@ def run(args) -> int:
         raise _Failure(f"{out}: the output folder does not exist.")
     print(f"bundledyn run {scene_file.path}")
     traj, elapsed = _solve(scene_file, progress=args.progress)
-    _summary(scene_file, traj, elapsed)
+    diagnostics = traj.diagnostics()
+    _summary(scene_file, traj, diagnostics, elapsed)
     path = out / scene_file.output["trajectory"]
-    written = [_write_trajectory(scene_file, traj, path, elapsed)]
+    written = [_write_trajectory(scene_file, traj, diagnostics, path, elapsed)]
     if scene_file.output["plots"] and not args.no_pictures and _pictures_available():
-        written += _write_pictures(scene_file, traj, out, path.stem)
+        written += _write_pictures(scene_file, traj, diagnostics, out, path.stem)
     for p in written:
         print(f"  wrote {p}")
     return 0
@@ -197,12 +198,14 @@ def demo(args) -> int:
 
     scene_file = bd.SceneFile.load(bd.scenes / "falling_cat.toml")
     cat, shape = scene_file.scene.system, scene_file.scene.shape
-    assert isinstance(shape, bd.Prescribed)  # the scene file prescribes the cat's bending
+    if not isinstance(shape, bd.Prescribed):
+        raise _Failure(f"{scene_file.path}: the demo's scene must prescribe the cat's bending.")
     bend = shape.q_of_t
     print("bundledyn demo: a falling cat turns itself over with zero angular momentum")
     print(f"  scene file: {scene_file.path}")
     traj, elapsed = _solve(scene_file)
-    _summary(scene_file, traj, elapsed)
+    diagnostics = traj.diagnostics()
+    _summary(scene_file, traj, diagnostics, elapsed)
     rotation = np.asarray(lie.so3_log(traj.g[-1, :3, :3]))
     angle = np.linalg.norm(rotation)
     frame = frame_name(scene_file.scene)
@@ -220,18 +223,18 @@ def demo(args) -> int:
     reduced = jax.vmap(lambda q, qd: 0.5 * qd @ bd.shape_metric(cat, q) @ qd)(traj.q, traj.qdot)
     print(
         "  check: kinetic energy equals the reduced energy J(qdot, qdot)/2 of zero momentum "
-        f"to {float(jnp.max(jnp.abs(traj.energy() - reduced))):.1e}"
+        f"to {float(jnp.max(jnp.abs(diagnostics.energy - reduced))):.1e}"
     )
     print(
         f"  check: largest component of the spatial momentum in {GALILEAN}: "
-        f"{np.abs(traj.spatial_momentum()).max():.1e}"
+        f"{np.abs(diagnostics.spatial_momentum).max():.1e}"
     )
     report = bd.checks.galilean_invariance(cat, jax.random.key(0), n=64)
     print("  " + str(report).replace("\n", "\n  "))
     if not args.no_pictures and _pictures_available():
         out = pathlib.Path(args.out)
         out.mkdir(parents=True, exist_ok=True)
-        for p in _write_pictures(scene_file, traj, out, "falling_cat"):
+        for p in _write_pictures(scene_file, traj, diagnostics, out, "falling_cat"):
             print(f"  wrote {p}")
     return 0
 

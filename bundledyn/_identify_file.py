@@ -20,7 +20,8 @@ from ._identify._fit import FitResult, fit
 from ._identify._gauge import AbstractGauge, KnownBodies, KnownMass, MeasuredInputs
 from ._identify._parameters import Parameters
 from ._identify._shooting import Windows
-from ._scene import PrescribedBase, Scene
+from ._modes import PrescribedBase
+from ._scene import Scene
 from ._scene_file import SceneFile, SceneFileError, _Table, load_system
 from ._systems._base import AbstractInertialSystem
 from ._systems._multibody import AbstractMultibody

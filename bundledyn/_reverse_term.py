@@ -1,11 +1,13 @@
-r"""A scene's term whose field has the hand-derived reverse pass (`body_field_vjp`).
+r"""The scene's field with the hand-derived reverse pass (`body_field_vjp`), for the terms'
+reverse-mode variants (`ReverseModeSceneTerm`, `ReplayedSceneTerm`).
 
 A `jax.custom_vjp` cannot be differentiated in forward mode, which the library needs
 (identification pushes directions through rollouts; the geometry uses `jacfwd`), and one
 nested in a `custom_jvp` rule cannot be transposed. So the custom reverse pass is not put on
 `SceneTerm`'s field: `StoredStepsAdjoint`, which differentiates each step itself in its
-reverse sweep, steps `for_reverse_mode(terms)` there, and the forward solve, forward mode and
-every other adjoint keep the plain field.
+reverse sweep, steps the terms' reverse-mode variants there (`for_reverse_mode`), and the
+forward solve, forward mode and every other adjoint keep the plain field. The pass is
+written for `FreeShapeMode`'s layout, $x = [q, U, \dot q]$, in the Galilean frame.
 """
 
 import equinox as eqx
@@ -16,38 +18,35 @@ from jax.ad_checkpoint import checkpoint_name
 
 from ._dynamics_vjp import body_field_vjp
 from ._effects import Kinematics
-from ._scene import FloatingBase, Scene
-from ._term import KEPT_FIELD_OUTPUTS, AbstractSceneTerm, SceneTerm, scene_field
+from ._modes import FreeShapeMode
+from ._scene import Scene
 
-__all__ = [
-    "ReplayedSceneTerm",
-    "ReverseModeSceneTerm",
-    "for_replay",
-    "for_reverse_mode",
-]
+__all__ = ["KEPT_FIELD_OUTPUTS", "check_covered", "covered", "replayed_field", "reverse_mode_field"]
+
+KEPT_FIELD_OUTPUTS = "bundledyn_kept_field_outputs"
+"""The `jax.ad_checkpoint.checkpoint_name` under which a field's outputs are kept, not
+recomputed, where the Lie-group solvers rematerialize a stage for reverse mode. A field
+whose reverse pass needs only its inputs and outputs (a `jax.custom_vjp`, as
+`ReverseModeSceneTerm`'s) names them so, and its stage is then evaluated once, not twice."""
 
 
-def _covered(scene: Scene) -> bool:
+def covered(scene: Scene) -> bool:
     """Whether the hand-derived reverse pass covers `scene`: a floating base and a free
-    shape in the Galilean frame (any system with $d > 0$, any effects)."""
-    return scene.free_shape and scene.frame is None and isinstance(scene.base, FloatingBase)
+    shape (`FreeShapeMode`, any system with $d > 0$, any effects) in the Galilean frame."""
+    return isinstance(scene.mode, FreeShapeMode) and scene.frame is None
 
 
-def _check_covered(scene, name):
-    if not _covered(scene):
+def check_covered(scene: Scene, name: str):
+    """Raise `ValueError` if the hand-derived reverse pass does not cover `scene`."""
+    if not covered(scene):
         raise ValueError(
             f"`{name}` needs a scene with a floating base and a free shape (d > 0) in the "
             "Galilean frame; use `SceneTerm` for any other scene."
         )
 
 
-def _field(scene, t, y):
-    g, x = y
-    d = scene.system.shape_dim
-    q, U, qdot = x[:d], x[d : d + 6], x[d + 6 :]
-    xi, Udot, qddot = scene_field(scene, t, g, q, U, qdot)
-    assert qddot is not None  # a free shape (`_covered`)
-    return xi, jnp.concatenate([qdot, Udot, qddot])
+def _field(scene: Scene, t, y):
+    return scene.mode.body_field(scene, t, y)
 
 
 @eqx.filter_custom_vjp
@@ -130,68 +129,11 @@ def _replayed_field_bwd(out, grad_out, perturbed, scene__y, t, _):
 
 
 @eqx.filter_jit
-def _reverse_mode_body_vf(term, t, y, args):
-    return _reverse_mode_field((term.scene, y), t)
+def reverse_mode_field(scene: Scene, t, y):
+    r"""The field $(\xi, \dot x)$ of a covered scene at `y`, with the hand-derived reverse pass."""
+    return _reverse_mode_field((scene, y), t)
 
 
-class ReverseModeSceneTerm(AbstractSceneTerm):
-    r"""`SceneTerm` with the field's hand-derived reverse pass (`body_field_vjp`): the same
-    field and codec, for reverse mode only (it has no forward-mode derivative).
-
-    **Arguments:**
-
-    - `scene`: a `Scene` with a floating base and a free shape in the Galilean frame.
-    """
-
-    scene: Scene
-
-    def __check_init__(self):
-        _check_covered(self.scene, type(self).__name__)
-
-    def body_vf(self, t, y, args):
-        r"""$(\xi, \dot x)$, $\dot x = (\dot q, \dot U, \ddot q)$, as `SceneTerm.body_vf`."""
-        return _reverse_mode_body_vf(self, t, y, args)
-
-
-class ReplayedSceneTerm(AbstractSceneTerm):
-    r"""`ReverseModeSceneTerm` whose field's values at the state it will be evaluated at
-    are known: it gives them back (`values`), and its reverse pass is the written-out one.
-
-    `StoredStepsAdjoint` keeps the field's values at a step's stages in its forward solve
-    and steps again with these terms in its reverse sweep (`AbstractRKMK.stage_step`), so
-    the field is not evaluated there. Only correct at that state: the values do not depend
-    on the state the term is given.
-
-    **Arguments:**
-
-    - `scene`: a `Scene` that `ReverseModeSceneTerm` takes.
-    - `values`: the field's values $(\xi, \dot x)$ there, as `SceneTerm.body_vf` gives them.
-    """
-
-    scene: Scene
-    values: tuple
-
-    def __check_init__(self):
-        _check_covered(self.scene, type(self).__name__)
-
-    def body_vf(self, t, y, args):
-        """The stored `values`, with the written-out reverse pass at `(scene, y)`."""
-        return _replayed_field((self.scene, y), t, jax.lax.stop_gradient(self.values))
-
-
-def _swapped(terms, swap):
-    def maybe(x):
-        return swap(x.scene) if isinstance(x, SceneTerm) and _covered(x.scene) else x
-
-    return jtu.tree_map(maybe, terms, is_leaf=lambda x: isinstance(x, SceneTerm))
-
-
-def for_reverse_mode(terms):
-    """`terms` with every `SceneTerm` that `ReverseModeSceneTerm` covers replaced by it."""
-    return _swapped(terms, ReverseModeSceneTerm)
-
-
-def for_replay(terms, values):
-    """`terms` with its one covered `SceneTerm` replaced by a `ReplayedSceneTerm` giving
-    `values`."""
-    return _swapped(terms, lambda scene: ReplayedSceneTerm(scene, values))
+def replayed_field(scene: Scene, t, y, values):
+    """The field's known `values` at `y`, with the hand-derived reverse pass at `(scene, y)`."""
+    return _replayed_field((scene, y), t, jax.lax.stop_gradient(values))

@@ -1,118 +1,58 @@
 """Scenes: a system, the effects acting on it, its shape and base modes and its frame of reference."""
 
-from collections.abc import Callable
-
 import equinox as eqx
-import jax
 import jax.numpy as jnp
 import numpy as np
 
-from . import lie
 from ._effects import AbstractEffect, Gravity, Kinematics, ShapeDamper, ShapeSpring
 from ._frames import AbstractFrame
+from ._modes import AbstractMode, FloatingBase, Free, Prescribed, PrescribedBase, mode_of
 from ._systems._base import AbstractSystem
 from ._systems._mujoco_import import FixedTendon, ModelParts, parts_from_mjcf, parts_from_urdf
 from ._systems._multibody import Multibody
 
 
-class Free(eqx.Module):
-    """The shape moves dynamically: both equations (2.6) are integrated."""
-
-
-class Prescribed(eqx.Module):
-    r"""The shape follows a given motion $q(t)$ (kinematic shape control).
-
-    Only (2.7) for the locked velocity and the reconstruction $\xi = U - A\dot q$ are
-    integrated: the falling cat, a satellite moving its arm.
-
-    **Arguments:**
-
-    - `q_of_t`: a JAX function `t -> q (d,)`; $\dot q$ and $\ddot q$ come by autodiff.
-    """
-
-    q_of_t: Callable
-
-    def at(self, t):
-        r"""$(q, \dot q)$ at time `t`."""
-        return jax.jvp(self.q_of_t, (t,), (jnp.ones_like(t),))
-
-
-class FloatingBase(eqx.Module):
-    """The section frame moves freely: (2.7) is integrated (the default)."""
-
-
-class PrescribedBase(eqx.Module):
-    r"""The section frame follows a given motion $g(t)$: a fixed base, or one moving like a
-    ship's deck; only the shape equation is integrated, driven by the base's motion (the
-    dual of `Prescribed`). The base's motion is given in the Galilean frame.
-
-    **Arguments:**
-
-    - `g_of_t`: a JAX function `t -> g (4, 4)`, a pose in SE(3) for every $t$; its body
-      velocity $\xi = (g^{-1}\dot g)^\vee$ and $\dot\xi$ come by autodiff.
-    """
-
-    g_of_t: Callable
-
-    @classmethod
-    def fixed(cls, g=None) -> "PrescribedBase":
-        """A base held still at the pose `g` (default the identity)."""
-        pose = jnp.eye(4) if g is None else jnp.asarray(g, dtype=float)
-        return cls(_Constant(pose))
-
-    def at(self, t):
-        r"""$(g, \xi, \dot\xi)$ at time `t`."""
-
-        def velocity(t):
-            g, g_dot = jax.jvp(self.g_of_t, (t,), (jnp.ones_like(t),))
-            return lie.vee(lie.se3_inv(g) @ g_dot)
-
-        xi, xi_dot = jax.jvp(velocity, (t,), (jnp.ones_like(t),))
-        return self.g_of_t(t), xi, xi_dot
-
-
-class _Constant(eqx.Module):
-    value: jax.Array
-
-    def __call__(self, t):
-        return self.value + 0.0 * t
-
-
 class Scene(eqx.Module):
-    """A system, the effects acting on it, its shape mode and the frame it is seen from.
+    """A system, the effects acting on it, its mode and the frame it is seen from.
 
-    The effects, the shape mode and the frame are static structure: only what a scene
-    names is compiled into its vector field (a rigid body gets no shape block, a scene
-    without gravity no gravity code).
+    The effects, the mode and the frame are static structure: only what a scene names is
+    compiled into its vector field (a rigid body gets no shape block, a scene without
+    gravity no gravity code).
 
     **Arguments:**
 
     - `system`: any `AbstractSystem`.
     - `effects`: a tuple of effects (`Gravity`, `ShapeSpring`, `ExternalWrench`, ...).
     - `shape`: `Free()` (default) or `Prescribed(q_of_t)`.
-    - `base`: `FloatingBase()` (default) or `PrescribedBase(g_of_t)`.
     - `frame`: `None` for the Galilean frame (default) or an `AbstractFrame`
       (`Boosted`, `FreeFalling`, `MovingFrame`); the state is then relative to that frame.
+    - `base`: `FloatingBase()` (default) or `PrescribedBase(g_of_t)`.
+    - `mode`: an `AbstractMode` of your own, in place of `shape` and `base` (which choose
+      among the built-in modes: `FreeShapeMode`, `RigidBodyMode`, `PrescribedShapeMode`,
+      `PrescribedBaseMode`).
     """
 
     system: AbstractSystem
     effects: list[AbstractEffect]
-    shape: Free | Prescribed
     frame: AbstractFrame | None
-    base: FloatingBase | PrescribedBase
+    mode: AbstractMode
 
-    def __init__(self, system, effects=(), shape=None, frame=None, *, base=None):
+    def __init__(self, system, effects=(), shape=None, frame=None, *, base=None, mode=None):
+        if not isinstance(system, AbstractSystem):
+            raise ValueError(f"`Scene.system` must be a system, got {type(system).__name__}.")
         self.system = system
         # A list, not a tuple: `equinox.tree_at` (used by diffrax's BacksolveAdjoint on the
         # solver state, which holds the scene's cotangent) fails on an empty tuple.
         self.effects = list(effects)
-        self.shape = Free() if shape is None else shape
         self.frame = frame
-        self.base = FloatingBase() if base is None else base
+        if mode is None:
+            shape = Free() if shape is None else shape
+            mode = mode_of(system, shape, FloatingBase() if base is None else base)
+        elif shape is not None or base is not None:
+            raise ValueError("give a `Scene` either `mode` or `shape` and `base`, not both.")
+        self.mode = mode
 
     def __check_init__(self):
-        if not isinstance(self.system, AbstractSystem):
-            raise ValueError(f"`Scene.system` must be a system, got {type(self.system).__name__}.")
         for e in self.effects:
             if not isinstance(e, AbstractEffect):
                 raise ValueError(
@@ -120,24 +60,21 @@ class Scene(eqx.Module):
                     "BodywiseGravityGradient, ShapePotential, ShapeSpring, ShapeDamper, "
                     "ExternalWrench or ShapeForce (or an AbstractEffect of your own)."
                 )
-        if not isinstance(self.shape, Free | Prescribed):
-            raise ValueError("`Scene.shape` must be `Free()` or `Prescribed(q_of_t)`.")
         if self.frame is not None and not isinstance(self.frame, AbstractFrame):
             raise ValueError("`Scene.frame` must be None (Galilean) or an AbstractFrame.")
-        if isinstance(self.shape, Prescribed) and self.system.shape_dim == 0:
-            raise ValueError("`Prescribed` needs a system with shape coordinates (d > 0).")
-        if not isinstance(self.base, FloatingBase | PrescribedBase):
-            raise ValueError("`Scene.base` must be `FloatingBase()` or `PrescribedBase(g_of_t)`.")
-        if isinstance(self.base, PrescribedBase):
-            if not isinstance(self.shape, Free) or self.system.shape_dim == 0:
-                raise ValueError(
-                    "`PrescribedBase` integrates the shape equation: it needs a free shape with "
-                    "d > 0 (with a prescribed shape too, nothing would be left to integrate)."
-                )
-            if self.frame is not None:
-                raise ValueError(
-                    "give a `PrescribedBase`'s motion in the Galilean frame (frame=None)."
-                )
+        if not isinstance(self.mode, AbstractMode):
+            raise ValueError(f"`Scene.mode` must be an AbstractMode, got {self.mode!r}.")
+        self.mode.check(self.system, self.frame)
+
+    @property
+    def shape(self) -> Free | Prescribed:
+        """The shape's motion: `Free()` or `Prescribed(q_of_t)` (the mode's)."""
+        return self.mode.shape
+
+    @property
+    def base(self) -> FloatingBase | PrescribedBase:
+        """The base's motion: `FloatingBase()` or `PrescribedBase(g_of_t)` (the mode's)."""
+        return self.mode.base
 
     @classmethod
     def from_mjcf(cls, source, *, section=0, passive: bool = False, gravity: bool = False):
@@ -161,7 +98,8 @@ class Scene(eqx.Module):
         A `Scene` of the `Multibody` with those effects (only those with a non-zero value).
         """
         parts = parts_from_mjcf(source, passive=passive)
-        return cls._of_model(parts, section=section, passive=passive, gravity=gravity)
+        system = Multibody.from_parts(parts, section=section)
+        return cls(system, model_effects(parts, passive=passive, gravity=gravity))
 
     @classmethod
     def from_urdf(cls, path, *, section=0, passive: bool = False, gravity: bool = False):
@@ -181,21 +119,8 @@ class Scene(eqx.Module):
         A `Scene` of the `Multibody` with those effects.
         """
         parts = parts_from_urdf(path, passive=passive)
-        return cls._of_model(parts, section=section, passive=passive, gravity=gravity)
-
-    @classmethod
-    def _of_model(cls, parts: ModelParts, *, section, passive: bool, gravity: bool):
-        effects = _passive_effects(parts) if passive else []
-        acceleration = np.asarray(parts.model.opt.gravity, dtype=float)
-        if gravity and np.any(acceleration):
-            size = float(np.linalg.norm(acceleration))
-            effects.append(Gravity(size, acceleration / size))
-        return cls(Multibody.from_parts(parts, section=section), effects)
-
-    @property
-    def free_shape(self) -> bool:
-        """Whether the shape equation (2.6) is integrated: a `Free` shape with $d > 0$."""
-        return isinstance(self.shape, Free) and self.system.shape_dim > 0
+        system = Multibody.from_parts(parts, section=section)
+        return cls(system, model_effects(parts, passive=passive, gravity=gravity))
 
     def forces(self, kin: Kinematics):
         """Total generalized force `(F_b, Q_H)` of the scene's effects at `kin`."""
@@ -205,6 +130,17 @@ class Scene(eqx.Module):
             dF, dQ = effect.generalized_force(self.system, kin)
             F, Q = F + dF, Q + dQ
         return F, Q
+
+
+def model_effects(parts: ModelParts, *, passive: bool, gravity: bool) -> list[AbstractEffect]:
+    """The effects an imported model asks for: its linear springs and dampers (`passive`)
+    and its `<option gravity>` (`gravity`; none if it is zero), as `Scene.from_mjcf` adds."""
+    effects = _passive_effects(parts) if passive else []
+    acceleration = np.asarray(parts.model.opt.gravity, dtype=float)
+    if gravity and np.any(acceleration):
+        size = float(np.linalg.norm(acceleration))
+        effects.append(Gravity(size, acceleration / size))
+    return effects
 
 
 def _passive_effects(parts: ModelParts) -> list[AbstractEffect]:

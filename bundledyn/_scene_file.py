@@ -25,8 +25,9 @@ from ._effects import (
 )
 from ._frames import Boosted, FreeFalling
 from ._geometry import connection
+from ._modes import Prescribed
 from ._paths import models
-from ._scene import Prescribed, Scene
+from ._scene import Scene, model_effects
 from ._simulate import simulate
 from ._solids import Box, Capsule, Ellipsoid
 from ._solver._lie_euler import LieEuler
@@ -36,6 +37,7 @@ from ._state import State
 from ._systems._affine_body import AffineBody
 from ._systems._joints import Fixed, Prismatic, Revolute, Spherical, Universal
 from ._systems._link import Link
+from ._systems._mujoco_import import parts_from_mjcf, parts_from_urdf
 from ._systems._multibody import Multibody
 from ._systems._rigid_body import RigidBody
 from ._trajectory import Trajectory
@@ -228,6 +230,7 @@ def _multibody(t: _Table):
     if not bodies:
         raise t.fail("bodies", "a multibody needs at least one [[system.bodies]] table.")
     names, links, solids = [], [], []
+    base = None  # the first body's (there is one)
     for i, b in enumerate(bodies):
         name = b.string("name", f"body{i}")
         if name in names:
@@ -276,10 +279,11 @@ def _model(t: _Table, kind, folder):
             raise t.fail("path", f"no such file: {source}.")
     passive = t.boolean("passive", False)
     gravity = t.string("gravity", "none", {"none", "model"}) == "model"
-    build = Scene.from_urdf if kind == "urdf" else Scene.from_mjcf
+    read = parts_from_urdf if kind == "urdf" else parts_from_mjcf
     with t.building(kind):
-        scene = build(source, passive=passive, gravity=gravity)
-    return scene.system, None, tuple(scene.effects)
+        parts = read(source, passive=passive)
+        system = Multibody.from_parts(parts)
+    return system, None, tuple(model_effects(parts, passive=passive, gravity=gravity))
 
 
 def _system(t: _Table, folder):

@@ -262,8 +262,7 @@ def simulate(
     if not isinstance(solver, AbstractLieGroupSolver):
         stats["embedding_drift"] = _orthogonality_error(g)
         g = project_to_se3(g)
-    states = jax.vmap(term.decode)(sol.ts, (g, x))
-    U = jax.vmap(lambda t, y: term.unpack(t, y)[2])(sol.ts, (g, x))
+    states, U = jax.vmap(term.decode_with_locked_velocity)(sol.ts, (g, x))
     return Trajectory(sol.ts, g, states.q, states.xi, states.qdot, U, stats, sol.result, scene)
 
 

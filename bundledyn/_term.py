@@ -1,12 +1,13 @@
-r"""The term layer: a scene's equations as a diffrax term, and the one codec of its state.
+r"""The term layer: a scene's equations as a diffrax term, the interface solvers and
+adjoints use.
 
 The user's state of a system is $(g, q, \xi, \dot q)$ (`State`). The integration variables
-are $y = (g, x)$ with the locked velocity $U = \xi + A(q)\dot q$ in place of $\xi$
-(seed 004, §2): $x = [q, U, \dot q]$ when the shape moves freely, $x = U$ for a rigid body
-or a prescribed shape (whose $q(t), \dot q(t)$ are given), and $x = [q, \dot q]$ for a
-prescribed base (whose $g(t), \xi(t)$ are given; $g$ is carried along). `SceneTerm` owns that layout:
-`encode` and `decode` convert a `State` both ways, `unpack` and `pack` give and take the
-parts, and every other module goes through them.
+are $y = (g, x)$, with the locked velocity $U = \xi + A(q)\dot q$ in place of $\xi$
+(seed 004, §2), laid out by the scene's mode (`AbstractMode`: which parts are integrated
+and how they are packed). `AbstractSceneTerm` is what solvers and adjoints may use of a
+scene: the codec (`encode`, `decode`, `pack`, `unpack`), the metric and the forces, the
+recharting of ball joints, and the variants with the hand-derived reverse pass
+(`reverse_mode`, `replayed`); they reach nothing else of it.
 
 The pose is the first leaf of $y$ in `jax.tree_util` order; the Lie-group solvers rely on
 that (`split`), and also step the augmented states of diffrax's adjoints, whose first leaf
@@ -17,30 +18,33 @@ import abc
 
 import diffrax
 import equinox as eqx
+import jax
 import jax.numpy as jnp
 import jax.tree_util as jtu
 
 from . import lie
-from ._dynamics import (
-    bundle_geometry,
-    driven_shape_acceleration,
-    locked_acceleration,
-    shape_acceleration,
-)
 from ._effects import Kinematics
-from ._frames import AbstractFrame
-from ._geometry import connection, locked_velocity
-from ._linalg import dot, matmul
-from ._scene import Prescribed, PrescribedBase, Scene
+from ._linalg import dot
+from ._reverse_term import (
+    KEPT_FIELD_OUTPUTS,
+    check_covered,
+    covered,
+    replayed_field,
+    reverse_mode_field,
+)
+from ._scene import Scene
 from ._state import State
-from ._systems._ball_chart import ball_columns, recharted_shape
 
 __all__ = [
     "KEPT_FIELD_OUTPUTS",
     "AbstractBodyTerm",
     "AbstractSceneTerm",
+    "ReplayedSceneTerm",
+    "ReverseModeSceneTerm",
     "SceneTerm",
-    "scene_field",
+    "for_replay",
+    "for_reverse_mode",
+    "has_reverse_mode",
     "split",
     "tangent_of_twist",
     "twist_of_tangent",
@@ -74,13 +78,6 @@ def tangent_of_twist(g, xi):
     return dot(g, lie.hat(xi))
 
 
-KEPT_FIELD_OUTPUTS = "bundledyn_kept_field_outputs"
-"""The `jax.ad_checkpoint.checkpoint_name` under which a field's outputs are kept, not
-recomputed, where the Lie-group solvers rematerialize a stage for reverse mode. A field
-whose reverse pass needs only its inputs and outputs (a `jax.custom_vjp`, as
-`ReverseModeSceneTerm`'s) names them so, and its stage is then evaluated once, not twice."""
-
-
 class AbstractBodyTerm(diffrax.AbstractTerm):
     r"""A diffrax term whose vector field is also given left-trivialized: the pose's rate
     as its body twist $\xi$, $\dot g = g\hat\xi$.
@@ -105,70 +102,40 @@ class AbstractBodyTerm(diffrax.AbstractTerm):
         return jtu.tree_unflatten(treedef, [tangent_of_twist(g, xi), *rest])
 
 
-def _frame_shift(frame: AbstractFrame, t, g):
-    r"""$\operatorname{Ad}_{g^{-1}}\vartheta$, $\operatorname{Ad}_{g^{-1}}\dot\vartheta$ and $M$:
-    what the scene's frame (moving by $M(t)$ with body velocity $\vartheta$) adds to the
-    velocities of (2.9)–(2.10)."""
-    M, theta, theta_dot = frame.motion_and_velocity(t)
-    Ad_inv = lie.Ad(lie.se3_inv(g))
-    return matmul(Ad_inv, theta), matmul(Ad_inv, theta_dot), M
-
-
-def scene_field(scene: Scene, t, g, q, U, qdot):
-    r"""The body twist $\xi$ of the pose and the rates $\dot U$, $\ddot q$ of (2.6)–(2.7).
-
-    In a moving frame the locked velocity is relative to it: the true one is $U +
-    \operatorname{Ad}_{g^{-1}}\vartheta$, and $\dot U$ gains $[\xi, \operatorname{Ad}_{g^{-1}}\vartheta]
-    - \operatorname{Ad}_{g^{-1}}\dot\vartheta$ (seed 004, (2.9)–(2.10)).
-    """
-    if scene.frame is not None:
-        shift, shift_dot, M = _frame_shift(scene.frame, t, g)
-        U, g = U + shift, matmul(M, g)
-    geo = bundle_geometry(scene.system, q, U, qdot)
-    xi = U - matmul(geo.A, qdot)
-    F, Q = scene.forces(Kinematics(t, g, q, xi, qdot))
-    Udot = locked_acceleration(geo, F)
-    if scene.frame is not None:
-        xi = xi - shift
-        Udot = Udot + lie.bracket(xi, shift) - shift_dot
-    qddot = shape_acceleration(geo, F, Q) if scene.free_shape else None
-    return xi, Udot, qddot
-
-
-def _driven_field(scene: Scene, base: PrescribedBase, t, x):
-    r"""The body twist $\xi(t)$ of the given base and $(\dot q, \ddot q)$ of the shape
-    equation it drives (`driven_shape_acceleration`)."""
-    d = scene.system.shape_dim
-    q, qdot = x[:d], x[d:]
-    g, xi, xi_dot = base.at(t)
-    _, Q = scene.forces(Kinematics(t, g, q, xi, qdot))
-    qddot = driven_shape_acceleration(scene.system, q, xi, xi_dot, qdot, Q)
-    return xi, jnp.concatenate([qdot, qddot])
-
-
 @eqx.filter_jit
-def _scene_body_vf(term, t, y, args):
+def _scene_body_vf(scene: Scene, t, y):
     # A jitted call: diffrax traces a solver's step up to three times (shapes, loop body,
     # starting step), and JAX then reuses the field's jaxpr, and under `jax.grad` its
     # derivative, instead of tracing and differentiating the field each time.
-    base = term.scene.base
-    if isinstance(base, PrescribedBase):
-        return _driven_field(term.scene, base, t, y[1])
-    g, q, U, qdot = term.unpack(t, y)
-    xi, Udot, qddot = scene_field(term.scene, t, g, q, U, qdot)
-    if qddot is None:
-        return xi, Udot
-    return xi, jnp.concatenate([qdot, Udot, qddot])
+    return scene.mode.body_field(scene, t, y)
 
 
 class AbstractSceneTerm(AbstractBodyTerm):
-    r"""A scene's term: the state codec and everything but the field, shared by `SceneTerm`
-    and the variant whose field has a hand-derived reverse pass (`ReverseModeSceneTerm`)."""
+    r"""A scene's term: what solvers and adjoints use of a scene.
+
+    The codec and the scene's quantities are delegated to the scene's mode; the field
+    (`body_vf`) and the variants with the hand-derived reverse pass (`reverse_mode`,
+    `replayed`) are each final term's own.
+    """
 
     scene: eqx.AbstractVar[Scene]
 
     def contr(self, t0, t1, **kwargs):
         return t1 - t0
+
+    def prod(self, vf, control):
+        return jtu.tree_map(lambda v: control * v, vf)
+
+    @abc.abstractmethod
+    def reverse_mode(self) -> "AbstractSceneTerm | None":
+        """This term with the field's hand-derived reverse pass (for reverse mode only), or
+        None where that pass does not cover the scene."""
+
+    @abc.abstractmethod
+    def replayed(self, values) -> "AbstractSceneTerm | None":
+        r"""A term that gives back the field's known `values` $(\xi, \dot x)$ at the state
+        it will be evaluated at, with the hand-derived reverse pass; None where that pass
+        does not cover the scene."""
 
     def recharted(self, t, y):
         r"""`y` with every ball joint's rotation vector in $|\varphi| \le \pi$: the same state
@@ -184,23 +151,14 @@ class AbstractSceneTerm(AbstractBodyTerm):
 
         The integration state in the recharted coordinates.
         """
-        scene = self.scene
-        if ball_columns(scene.system).size == 0 or isinstance(scene.shape, Prescribed):
-            return y
-        _, q, U, qdot = self.unpack(t, y)
-        q, qdot = recharted_shape(scene.system, q, qdot)
-        return self.pack(y[0], q, U, qdot)
+        return self.scene.mode.recharted(self.scene, t, y)
 
-    def prod(self, vf, control):
-        return jtu.tree_map(lambda v: control * v, vf)
-
-    # The codec.
     def unpack(self, t, y):
         r"""$(g, q, U, \dot q)$ from the integration state `y` at time `t`.
 
         **Arguments:**
 
-        - `t`: the time (a prescribed shape is read off its motion at `t`).
+        - `t`: the time (a prescribed shape or base is read off its motion at `t`).
         - `y`: `(g, x)`.
 
         **Returns:**
@@ -208,27 +166,12 @@ class AbstractSceneTerm(AbstractBodyTerm):
         The pose `(4, 4)`, the shape `(d,)`, the locked velocity $U$ `(6,)` and the shape
         velocity `(d,)`.
         """
-        g, x = y
-        scene = self.scene
-        if isinstance(scene.shape, Prescribed):
-            q, qdot = scene.shape.at(t)
-            return g, q, x, qdot
-        d = scene.system.shape_dim
-        if isinstance(scene.base, PrescribedBase):
-            g, xi, _ = scene.base.at(t)
-            q, qdot = x[:d], x[d:]
-            return g, q, locked_velocity(scene.system, q, xi, qdot), qdot
-        return g, x[:d], x[d : d + 6], x[d + 6 :]
+        return self.scene.mode.unpack(self.scene, t, y)
 
     def pack(self, g, q, U, qdot):
         r"""The integration state $y = (g, x)$ of the pose, shape, locked velocity and shape
-        velocity: $x = [q, U, \dot q]$, $x = U$ for a rigid body or a prescribed shape, and
-        $x = [q, \dot q]$ for a prescribed base."""
-        if isinstance(self.scene.base, PrescribedBase):
-            return g, jnp.concatenate([q, qdot])
-        if self.scene.free_shape:
-            return g, jnp.concatenate([q, U, qdot])
-        return g, U
+        velocity, in the scene mode's layout."""
+        return self.scene.mode.pack(self.scene, g, q, U, qdot)
 
     def encode(self, t, state: State):
         r"""The integration state $y$ of `state` at time `t`, with $U = \xi + A(q)\dot q$.
@@ -245,30 +188,15 @@ class AbstractSceneTerm(AbstractBodyTerm):
 
         `y = (g, x)`.
         """
-        system = self.scene.system
-        if isinstance(self.scene.shape, Prescribed):
-            q, qdot = self.scene.shape.at(jnp.asarray(t, dtype=state.g.dtype))
-        elif state.q.shape != (system.shape_dim,):
-            raise ValueError(
-                f"`state.q` and `state.qdot` must have shape ({system.shape_dim},) for this "
-                f"system, got {state.q.shape}."
-            )
-        else:
-            q, qdot = state.q, state.qdot
-        if isinstance(self.scene.base, PrescribedBase):
-            g = self.scene.base.at(jnp.asarray(t, dtype=state.g.dtype))[0]
-            return self.pack(g, q, None, qdot)
-        U = locked_velocity(system, q, state.xi, qdot) if system.shape_dim else state.xi
-        return self.pack(state.g, q, U, qdot)
+        return self.scene.mode.encode(self.scene, t, state)
 
     def decode(self, t, y) -> State:
         r"""The `State` $(g, q, \xi, \dot q)$ of the integration state `y` at time `t`, $\xi = U - A(q)\dot q$."""
-        g, q, U, qdot = self.unpack(t, y)
-        return State(g, q, self._xi(q, U, qdot), qdot)
+        return self.scene.mode.decode(self.scene, t, y)[0]
 
-    def _xi(self, q, U, qdot):
-        system = self.scene.system
-        return U - connection(system, q) @ qdot if system.shape_dim else U
+    def decode_with_locked_velocity(self, t, y) -> tuple[State, jax.Array]:
+        """The `State` at `y` and the locked velocity $U$ there, decoded once."""
+        return self.scene.mode.decode(self.scene, t, y)
 
     def kinematics(self, t, y) -> Kinematics:
         """The state at `y` as `Kinematics` in the Galilean frame (the true pose and velocities).
@@ -277,12 +205,19 @@ class AbstractSceneTerm(AbstractBodyTerm):
 
         - `t`: the time; `y`: the integration state.
         """
-        g, q, U, qdot = self.unpack(t, y)
-        xi = self._xi(q, U, qdot)
-        if self.scene.frame is None:
-            return Kinematics(t, g, q, xi, qdot)
-        shift, _, M = _frame_shift(self.scene.frame, t, g)
-        return Kinematics(t, M @ g, q, xi + shift, qdot)
+        return self.scene.mode.kinematics(self.scene, t, y)
+
+    def metric(self, q):
+        """The system's metric $G(q)$ (`AbstractSystem.metric`)."""
+        return self.scene.system.metric(q)
+
+    def metric_and_derivative(self, q):
+        r"""$G(q)$ and $\partial G/\partial q$ (`AbstractSystem.metric_and_derivative`)."""
+        return self.scene.system.metric_and_derivative(q)
+
+    def forces(self, t, g, q, xi, qdot):
+        """The scene's generalized force `(F_b, Q_H)` at that state (`Scene.forces`)."""
+        return self.scene.forces(Kinematics(t, g, q, xi, qdot))
 
 
 class SceneTerm(AbstractSceneTerm):
@@ -306,6 +241,96 @@ class SceneTerm(AbstractSceneTerm):
     scene: Scene
 
     def body_vf(self, t, y, args):
-        r"""$(\xi, \dot x)$: the body twist of the pose and $\dot x = (\dot q, \dot U, \ddot q)$,
-        or $\dot U$ when $x = U$."""
-        return _scene_body_vf(self, t, y, args)
+        r"""$(\xi, \dot x)$: the body twist of the pose and the rate of $x$ in the mode's
+        layout ($\dot x = (\dot q, \dot U, \ddot q)$ for a free shape)."""
+        return _scene_body_vf(self.scene, t, y)
+
+    def reverse_mode(self):
+        return ReverseModeSceneTerm(self.scene) if covered(self.scene) else None
+
+    def replayed(self, values):
+        return ReplayedSceneTerm(self.scene, values) if covered(self.scene) else None
+
+
+class ReverseModeSceneTerm(AbstractSceneTerm):
+    r"""`SceneTerm` with the field's hand-derived reverse pass (`body_field_vjp`): the same
+    field and codec, for reverse mode only (it has no forward-mode derivative).
+
+    **Arguments:**
+
+    - `scene`: a `Scene` with a floating base and a free shape in the Galilean frame.
+    """
+
+    scene: Scene
+
+    def __check_init__(self):
+        check_covered(self.scene, type(self).__name__)
+
+    def body_vf(self, t, y, args):
+        r"""$(\xi, \dot x)$, $\dot x = (\dot q, \dot U, \ddot q)$, as `SceneTerm.body_vf`."""
+        return reverse_mode_field(self.scene, t, y)
+
+    def reverse_mode(self):
+        return self
+
+    def replayed(self, values):
+        return ReplayedSceneTerm(self.scene, values)
+
+
+class ReplayedSceneTerm(AbstractSceneTerm):
+    r"""`ReverseModeSceneTerm` whose field's values at the state it will be evaluated at
+    are known: it gives them back (`values`), and its reverse pass is the written-out one.
+
+    `StoredStepsAdjoint` keeps the field's values at a step's stages in its forward solve
+    and steps again with these terms in its reverse sweep (`AbstractRKMK.stage_step`), so
+    the field is not evaluated there. Only correct at that state: the values do not depend
+    on the state the term is given.
+
+    **Arguments:**
+
+    - `scene`: a `Scene` that `ReverseModeSceneTerm` takes.
+    - `values`: the field's values $(\xi, \dot x)$ there, as `SceneTerm.body_vf` gives them.
+    """
+
+    scene: Scene
+    values: tuple
+
+    def __check_init__(self):
+        check_covered(self.scene, type(self).__name__)
+
+    def body_vf(self, t, y, args):
+        """The stored `values`, with the written-out reverse pass at `(scene, y)`."""
+        return replayed_field(self.scene, t, y, self.values)
+
+    def reverse_mode(self):
+        return ReverseModeSceneTerm(self.scene)
+
+    def replayed(self, values):
+        return ReplayedSceneTerm(self.scene, values)
+
+
+def _swapped(terms, swap):
+    def maybe(x):
+        if not isinstance(x, AbstractSceneTerm):
+            return x
+        swapped = swap(x)
+        return x if swapped is None else swapped
+
+    return jtu.tree_map(maybe, terms, is_leaf=lambda x: isinstance(x, AbstractSceneTerm))
+
+
+def for_reverse_mode(terms):
+    """`terms` with every scene term replaced by its `reverse_mode()` variant, where it has one."""
+    return _swapped(terms, lambda term: term.reverse_mode())
+
+
+def for_replay(terms, values):
+    """`terms` with its one scene term replaced by its `replayed(values)` variant, where it
+    has one."""
+    return _swapped(terms, lambda term: term.replayed(values))
+
+
+def has_reverse_mode(terms) -> bool:
+    """Whether a scene term in `terms` has a variant with the hand-derived reverse pass."""
+    leaves = jtu.tree_leaves(terms, is_leaf=lambda x: isinstance(x, AbstractSceneTerm))
+    return any(isinstance(x, AbstractSceneTerm) and x.reverse_mode() is not None for x in leaves)

@@ -84,8 +84,9 @@ def _count_primitives(jaxpr, names=None):
 
 
 def _vector_field_jaxpr(scene, d):
-    y = (jnp.eye(4), jnp.zeros(2 * d + 6 if scene.free_shape else 6))
-    return jax.make_jaxpr(bd.SceneTerm(scene).vf)(0.0, y, None).jaxpr
+    term = bd.SceneTerm(scene)
+    y = term.pack(jnp.eye(4), jnp.zeros(d), jnp.zeros(6), jnp.zeros(d))
+    return jax.make_jaxpr(term.vf)(0.0, y, None).jaxpr
 
 
 def test_scene_compiles_only_the_effects_it_names():

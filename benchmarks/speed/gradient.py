@@ -139,7 +139,7 @@ def gradient_units(scene, state, t1, rtol):
     rejected)."""
     import jax
 
-    from bundledyn._reverse_term import for_replay
+    from bundledyn._term import for_replay
 
     options = simulate_options("RKMK87", "adaptive", rtol)
     steps = int(bd.simulate(scene, state, t1, **options).stats["num_steps"])

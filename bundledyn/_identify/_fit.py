@@ -17,7 +17,8 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .._scene import PrescribedBase, Scene
+from .._modes import PrescribedBase
+from .._scene import Scene
 from .._simulate import simulate
 from .._state import State
 from ._data import Inputs, Measurements, level
@@ -271,6 +272,7 @@ def fit(
             stages.insert(-1, (stage, 1e-4))
             looser /= 10.0
     costs, evaluations, trials, steps = [], 0, 0, 0
+    solutions = []
     for stage, tolerance in stages:
         solution = levenberg_marquardt(
             lambda z, stage=stage: evaluate(z, stage),
@@ -278,10 +280,12 @@ def fit(
             z0, max_steps=max(1, max_steps - trials), ftol=tolerance,
             units=units[: z0.shape[0]], callback=record,
         )  # fmt: skip
+        solutions.append(solution)
         z0 = solution.z
         costs += solution.costs
         evaluations += solution.evaluations
         trials, steps = trials + solution.trials, steps + solution.steps
+    solution = solutions[-1]  # the last stage's, at the measurements' own continuity
     theta, fitted_states = problem.split(solution.z)
     information = theta_information(
         solution.jacobian, solution.constraint_jacobian, parameters.size

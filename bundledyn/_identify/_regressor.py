@@ -31,9 +31,9 @@ import numpy as np
 
 from .. import lie
 from .._dynamics import driven_shape_force
-from .._effects import Kinematics
+from .._effects import AbstractPotential, Kinematics
 from .._geometry import kinetic_energy
-from .._scene import PrescribedBase
+from .._modes import PrescribedBase
 from .._state import State
 from .._systems._pseudo_inertia import log_cholesky_from_pseudo_inertia
 from ._data import Inputs, Measurements
@@ -138,11 +138,10 @@ class _Linear(eqx.Module):
         for effect in scene.effects:
             F, Q = effect.generalized_force(system, kin)
             rate = rate + lie.coAd(g) @ F
-            potential = effect.potential(system, t, g, q)
-            if potential is None:
-                power = power + F @ xi + Q @ qdot
+            if isinstance(effect, AbstractPotential):
+                energy = energy + effect.potential(system, t, g, q)
             else:
-                energy = energy + potential
+                power = power + F @ xi + Q @ qdot
         return momentum, energy, rate, power
 
 

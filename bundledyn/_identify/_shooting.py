@@ -23,7 +23,8 @@ import jax.numpy as jnp
 import numpy as np
 
 from .. import lie
-from .._scene import PrescribedBase, Scene
+from .._modes import AbstractWindowChart
+from .._scene import Scene
 from .._solver._rkmk import RKMK87
 from .._state import State
 from .._systems._multibody import AbstractMultibody
@@ -58,73 +59,9 @@ class Windows(eqx.Module):
             raise ValueError("`Windows.count` and `Windows.substeps` must be positive.")
 
 
-class _FloatingChart(eqx.Module):
-    r"""Window states of a floating base: $s = (\delta, q, \xi, \dot q)$ about a reference pose."""
-
-    d: int = eqx.field(static=True)
-
-    @property
-    def size(self) -> int:
-        return 12 + 2 * self.d
-
-    def state(self, s, g_ref) -> State:
-        d = self.d
-        return State(g_ref @ lie.se3_exp(s[:6]), s[6 : 6 + d], s[6 + d : 12 + d], s[12 + d :])
-
-    def coordinates(self, q, xi, qdot):
-        r"""$s$ of a state at its own reference pose ($\delta = 0$), batched over windows."""
-        return jnp.concatenate([jnp.zeros_like(xi), q, xi, qdot], axis=-1)
-
-    def units(self, noise: Noise):
-        """Each coordinate's natural unit: its channel's noise level."""
-        d = self.d
-        return jnp.concatenate(
-            [
-                jnp.full(3, noise.rotation), jnp.full(3, noise.position), jnp.full(d, noise.q),
-                jnp.full(3, noise.angular_velocity), jnp.full(3, noise.linear_velocity),
-                jnp.full(d, noise.qdot),
-            ]
-        )  # fmt: skip
-
-    def difference(self, end: State, start: State, noise: Noise):
-        """`end - start` in the chart, each part divided by its channel's noise level."""
-        scale = self.units(noise)
-        difference = jnp.concatenate(
-            [
-                lie.so3_log(start.g[:3, :3].T @ end.g[:3, :3]), end.g[:3, 3] - start.g[:3, 3],
-                end.q - start.q, end.xi - start.xi, end.qdot - start.qdot,
-            ]
-        )  # fmt: skip
-        return difference / scale
-
-
-class _DrivenChart(eqx.Module):
-    r"""Window states of a prescribed base: $s = (q, \dot q)$ (the base's motion is given)."""
-
-    d: int = eqx.field(static=True)
-
-    @property
-    def size(self) -> int:
-        return 2 * self.d
-
-    def state(self, s, g_ref) -> State:
-        return State(g_ref, s[: self.d], jnp.zeros(6, s.dtype), s[self.d :])
-
-    def coordinates(self, q, xi, qdot):
-        return jnp.concatenate([q, qdot], axis=-1)
-
-    def units(self, noise: Noise):
-        return jnp.concatenate([jnp.full(self.d, noise.q), jnp.full(self.d, noise.qdot)])
-
-    def difference(self, end: State, start: State, noise: Noise):
-        units = self.units(noise)
-        return jnp.concatenate([end.q - start.q, end.qdot - start.qdot]) / units
-
-
-def window_chart(scene: Scene):
-    """The coordinates of the windows' initial states for this scene's base mode."""
-    d = scene.system.shape_dim
-    return _DrivenChart(d) if isinstance(scene.base, PrescribedBase) else _FloatingChart(d)
+def window_chart(scene: Scene) -> AbstractWindowChart:
+    """The coordinates of the windows' initial states: the scene's mode's."""
+    return scene.mode.window_chart(scene)
 
 
 def _pose_residual(g_pred, g_meas, noise: Noise):

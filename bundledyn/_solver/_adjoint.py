@@ -25,9 +25,9 @@ import jax.tree_util as jtu
 from diffrax._adjoint import _inner_loop, _outer_loop
 from diffrax._integrate import SaveState
 
-from .._reverse_term import ReverseModeSceneTerm, for_replay, for_reverse_mode
+from .._term import for_replay, for_reverse_mode, has_reverse_mode
+from ._base import AbstractStageReplaySolver
 from ._chart import body_term
-from ._rkmk import AbstractRKMK
 from ._stage_record import StageRecorder, nbytes, slot_values, stage_values_shape, with_values
 
 __all__ = ["StoredStepsAdjoint"]
@@ -65,13 +65,14 @@ class StoredStepsAdjoint(diffrax.AbstractAdjoint):
     differentiate: the same steps, the step sizes held fixed, events located by their root
     find differentiated implicitly). The reverse pass differentiates the solver's `step`
     only, not diffrax's loop around it (its step-size controller, saving and event checks),
-    and each accepted step once, so the gradient compiles faster (a 20-body chain's in 2/3
-    of the time); it runs in about the checkpointed adjoint's time, which the VJP of the
-    steps dominates (`benchmarks/`). `bundledyn.simulate` uses it with its Lie-group
+    and each accepted step once, so the gradient compiles faster; it runs in about the
+    checkpointed adjoint's time, which the VJP of the steps dominates (the figures are in
+    `benchmarks/README.md`). `bundledyn.simulate` uses it with its Lie-group
     solvers.
 
-    With an `AbstractRKMK` solver and a scene the written-out pass covers, the forward
-    solve instead keeps the start states and the field's values at the stages of its last
+    With an `AbstractStageReplaySolver` (the `AbstractRKMK` methods) and a scene whose
+    term has the written-out pass (`AbstractSceneTerm.reverse_mode`), the forward solve
+    instead keeps the start states and the field's values at the stages of its last
     accepted steps, as many as fit in `stage_memory` bytes, and the start state of every
     block of that many steps (`StageRecorder`). The reverse sweep then steps with terms
     that give those values back (`ReplayedSceneTerm`) and evaluates no field, except at
@@ -79,10 +80,9 @@ class StoredStepsAdjoint(diffrax.AbstractAdjoint):
     block, in the forward pass alone. It differentiates those steps' stages by their
     written-out reverse pass (`AbstractRKMK.stage_step` with `reverse_pass=True`), which
     evaluates the derivatives of the stages' exponentials and $\mathrm{dexp}^{-1}$ for all
-    stages at once instead of stage by stage. On a family of trees this cut the gradient's time by
-    12-31 % (median 20 %), each member's ratio to autodiff's baseline in two runs of
-    `benchmarks/family`; least on the shortest solves (24 steps), where costs that do not
-    grow with the steps weigh more.
+    stages at once instead of stage by stage: autodiff differentiates them through dozens
+    of scalar kernels per stage, so this shortens the gradient, least on short solves, where
+    the costs that do not grow with the steps weigh more.
 
     Memory: one state per possible step, `max_steps` of them (with the replayed stages,
     one time per possible step, and the states as above). Past `max_memory` bytes, or
@@ -109,8 +109,8 @@ class StoredStepsAdjoint(diffrax.AbstractAdjoint):
       other scenes keep autodiff), or `"autodiff"`. The same gradients either way. The
       written-out pass needs only the field's inputs and outputs, so the reverse sweep
       replays the field's values (above) instead of evaluating it again; with respect to
-      the state (`y0`) the gradient then takes 0.43-0.63x autodiff's time on a family of
-      trees (median 0.47, `benchmarks/`). Where the scene's numbers are differentiated too, both transpose the
+      the state (`y0`) the gradient then takes less time than with `"autodiff"`, which
+      transposes the field. Where the scene's numbers are differentiated too, both transpose the
       field by autodiff, and `"autodiff"` is a few percent faster.
     """
 
@@ -149,8 +149,8 @@ class StoredStepsAdjoint(diffrax.AbstractAdjoint):
         term, _ = body_term(terms)
         if (
             self.field_reverse != "hand-derived"
-            or not isinstance(solver, AbstractRKMK)
-            or not isinstance(for_reverse_mode(term), ReverseModeSceneTerm)
+            or not isinstance(solver, AbstractStageReplaySolver)
+            or not has_reverse_mode(term)
         ):
             return 0
         values = stage_values_shape(solver, terms, init_state.tprev, init_state.y, args)
@@ -395,7 +395,7 @@ class _Problem(eqx.Module):
         args = eqx.combine(diff_args, self.static_args)
         terms = eqx.combine(diff_terms, self.static_terms)
         if values is not None:
-            assert isinstance(self.solver, AbstractRKMK)  # as `_stage_capacity` requires
+            assert isinstance(self.solver, AbstractStageReplaySolver)  # `_stage_capacity`
 
             def replayed(i):
                 return for_replay(terms, jtu.tree_map(lambda v: v[i], values))
@@ -413,7 +413,7 @@ class _Problem(eqx.Module):
         """The step from `y` (the state it ends at) and the field's values at its stages."""
         args = eqx.combine(diff_args, self.static_args)
         terms = eqx.combine(diff_terms, self.static_terms)
-        assert isinstance(self.solver, AbstractRKMK)  # as `_stage_capacity` requires
+        assert isinstance(self.solver, AbstractStageReplaySolver)  # `_stage_capacity`
         y1, _, _, values = self.solver.stage_step(terms, ta, tb, y, args)
         return y1, values
 

@@ -32,7 +32,7 @@ from diffrax import RESULTS, AbstractAdaptiveSolver, AbstractTerm
 
 from .. import lie
 from .._term import split
-from ._base import AbstractLieGroupSolver
+from ._base import AbstractStageReplaySolver
 from ._chart import body_field, body_term, checked_start, from_chart, recharted
 from ._interpolation import LieLocalInterpolation
 from ._stage_reverse import combine, stages, stages_with_reverse_pass
@@ -41,7 +41,7 @@ from ._tableau import LieButcherTableau, dopri5_tableau, dopri8_tableau, rk4_tab
 __all__ = ["AbstractRKMK", "RKMK4", "RKMK54", "RKMK87"]
 
 
-class AbstractRKMK(AbstractLieGroupSolver):
+class AbstractRKMK(AbstractStageReplaySolver):
     r"""Explicit Runge–Kutta–Munthe-Kaas method given by a Butcher tableau.
 
     Subclass it with a `LieButcherTableau` as the class attribute `tableau`, an `order`

@@ -15,12 +15,12 @@ import jax
 import jax.numpy as jnp
 import jax.tree_util as jtu
 
-from ._rkmk import AbstractRKMK
+from ._base import AbstractStageReplaySolver
 
 __all__ = ["Kept", "StageRecorder", "nbytes", "slot_values", "stage_values_shape", "with_values"]
 
 
-def stage_values_shape(solver: AbstractRKMK, terms, t0, y0, args):
+def stage_values_shape(solver: AbstractStageReplaySolver, terms, t0, y0, args):
     """The shapes and dtypes of a step's stage values (`AbstractRKMK.stage_step`)."""
     return eqx.filter_eval_shape(
         lambda: solver.stage_step(terms, t0, t0, y0, args)[3],
@@ -50,21 +50,23 @@ class StageRecorder(diffrax.AbstractSolver):
 
     **Arguments:**
 
-    - `solver`: the `AbstractRKMK` method (its own state is `None`).
+    - `solver`: an `AbstractStageReplaySolver` (its own state is `None`).
     - `capacity`: how many steps' values and states are kept.
     - `checkpoints`: how many checkpoints are kept (`max_steps / capacity`, rounded up).
     """
 
-    solver: AbstractRKMK
+    solver: AbstractStageReplaySolver
     capacity: int = eqx.field(static=True)
     checkpoints: int = eqx.field(static=True)
 
+    # The wrapped solver's, as diffrax's own wrappers give them: properties for what
+    # `AbstractSolver` declares class variables.
     @property
-    def term_structure(self):
+    def term_structure(self):  # pyright: ignore[reportIncompatibleVariableOverride]
         return self.solver.term_structure
 
     @property
-    def interpolation_cls(self):
+    def interpolation_cls(self):  # pyright: ignore[reportIncompatibleMethodOverride]
         return self.solver.interpolation_cls
 
     def order(self, terms):

@@ -8,19 +8,19 @@ import jax.numpy as jnp
 from diffrax import RESULTS
 
 from .. import lie
-from .._effects import Kinematics
-from .._scene import FloatingBase, Free
-from .._term import AbstractSceneTerm, SceneTerm
+from .._modes import FreeShapeMode, RigidBodyMode
+from .._term import AbstractSceneTerm
 from ._base import AbstractLieGroupSolver
-from ._chart import checked_start
+from ._chart import body_term, checked_start
 from ._interpolation import LieLocalInterpolation
 
 
 def _scene_term(terms) -> AbstractSceneTerm:
-    """The `SceneTerm` inside the wrapper that `diffeqsolve` puts around every term."""
-    while not isinstance(terms, AbstractSceneTerm):
-        terms = terms.term
-    return terms
+    """The scene term that `terms` is, or that diffrax's wrapper around it holds."""
+    term, _ = body_term(terms)
+    if not isinstance(term, AbstractSceneTerm):
+        raise ValueError("VariationalMidpoint integrates a scene's term (`SceneTerm`).")
+    return term
 
 
 class VariationalMidpoint(AbstractLieGroupSolver):
@@ -57,7 +57,7 @@ class VariationalMidpoint(AbstractLieGroupSolver):
     iterations: int = eqx.field(static=True, default=8)
     tolerance: float = eqx.field(static=True, default=1e-10)
 
-    term_structure: ClassVar = SceneTerm
+    term_structure: ClassVar = AbstractSceneTerm
     interpolation_cls: ClassVar = LieLocalInterpolation
 
     def order(self, terms):
@@ -65,8 +65,7 @@ class VariationalMidpoint(AbstractLieGroupSolver):
 
     def init(self, terms, t0, t1, y0, args):
         scene = _scene_term(terms).scene
-        floating = isinstance(scene.base, FloatingBase)
-        if scene.frame is not None or not isinstance(scene.shape, Free) or not floating:
+        if scene.frame is not None or not isinstance(scene.mode, FreeShapeMode | RigidBodyMode):
             raise ValueError(
                 "VariationalMidpoint integrates scenes in the Galilean frame with a free shape "
                 "and a floating base; use RKMK87 (the default) for moving frames, prescribed "
@@ -80,24 +79,23 @@ class VariationalMidpoint(AbstractLieGroupSolver):
     def step(self, terms, t0, t1, y0, args, solver_state, made_jump):
         term = _scene_term(terms)
         y0 = term.recharted(t0, y0)
-        scene, system = term.scene, term.scene.system
-        d = system.shape_dim
         h = t1 - t0
         g0, q0, U0, qdot0 = term.unpack(t0, y0)
-        G0 = system.metric(q0)
+        d = q0.shape[0]
+        G0 = term.metric(q0)
         xi0 = U0 - jnp.linalg.solve(G0[:6, :6], G0[:6, 6:]) @ qdot0 if d else U0
         p0 = G0 @ jnp.concatenate([xi0, qdot0])
-        F0, Q0 = scene.forces(Kinematics(t0, g0, q0, xi0, qdot0))
+        F0, Q0 = term.forces(t0, g0, q0, xi0, qdot0)
         m_target = p0[:6] + h * F0
         pi_target = p0[6:] + h * Q0
 
         def parts(z):  # z = (Ω, q_{k+1} - q_k) = h v
             Omega, v = z[:6], z / h
             if d:
-                G, dG = system.metric_and_derivative(q0 + 0.5 * z[6:])
+                G, dG = term.metric_and_derivative(q0 + 0.5 * z[6:])
                 curvature_force = 0.25 * h * (dG @ v) @ v
             else:
-                G, curvature_force = system.metric(q0), jnp.zeros(0, q0.dtype)
+                G, curvature_force = term.metric(q0), jnp.zeros(0, q0.dtype)
             Gv = G @ v
             return Omega, Gv, curvature_force
 
@@ -119,7 +117,7 @@ class VariationalMidpoint(AbstractLieGroupSolver):
         pi1 = curvature_force + Gv[6:]
         q1 = z[6:] + q0
         # Velocities at the new node from its momenta: [ξ; q̇] = G(q1)⁻¹ [m; π].
-        G1 = system.metric(q1)
+        G1 = term.metric(q1)
         v1 = jnp.linalg.solve(G1, jnp.concatenate([m1, pi1]))
         U1 = jnp.linalg.solve(G1[:6, :6], m1)
         y1 = term.pack(g0 @ lie.se3_exp(Omega), q1, U1, v1[6:])

@@ -4,7 +4,7 @@ import numpy as np
 from matplotlib.figure import Figure
 from matplotlib.ticker import NullFormatter
 
-from .._trajectory import Trajectory
+from .._trajectory import Diagnostics, Trajectory
 from ._attitude import attitude_quaternions
 from ._canvas import new_figure, save_figure
 from ._frame_names import GALILEAN, frame_name
@@ -23,7 +23,9 @@ def _maybe_save(fig, path):
     return fig
 
 
-def plot_drift(trajectory: Trajectory, *, path=None) -> Figure:
+def plot_drift(
+    trajectory: Trajectory, *, path=None, diagnostics: Diagnostics | None = None
+) -> Figure:
     r"""Energy and spatial momentum minus their initial values, against time.
 
     Both are conserved by a free system with conservative effects (seed 004, (2.6) with
@@ -34,15 +36,17 @@ def plot_drift(trajectory: Trajectory, *, path=None) -> Figure:
 
     - `trajectory`: a `Trajectory` with several saved times.
     - `path`: if given, the figure is also written there (PNG, SVG, PDF by suffix).
+    - `diagnostics`: the trajectory's `diagnostics()`, if already computed.
 
     **Returns:**
 
     The matplotlib `Figure`.
     """
+    diagnostics = trajectory.diagnostics() if diagnostics is None else diagnostics
     keep = _finite(trajectory)
     t = np.asarray(trajectory.ts)[keep]
-    energy = np.asarray(trajectory.energy())[keep]
-    momentum = np.asarray(trajectory.spatial_momentum())[keep]
+    energy = np.asarray(diagnostics.energy)[keep]
+    momentum = np.asarray(diagnostics.spatial_momentum)[keep]
     fig = new_figure(7.0, 4.0)
     top, bottom = fig.subplots(2, 1, sharex=True)
     top.plot(t, energy - energy[0], color="k")

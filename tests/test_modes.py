@@ -1,0 +1,313 @@
+"""Scene modes: every mode meets the same battery, and a mode defined here alone runs
+through `simulate`, gradients and the command line.
+
+The battery, for every scene of `MODE_SCENES` (each built-in mode, a moving frame, and
+`HingedBody`): the layout's round trips, the field against the reference form (the rows of
+it that the mode integrates), energy where it is conserved, and `StoredStepsAdjoint`'s
+gradient against `RecursiveCheckpointAdjoint`'s.
+
+`HingedBody` is a rigid body turning about an axis fixed in space and in the body, through
+its section frame's origin: a physical pendulum under gravity. Nothing outside this file
+knows it; the library reaches it only through `AbstractMode`.
+"""
+
+import dataclasses
+import functools as ft
+
+import diffrax
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+from systems import asymmetric_body, chain, chain3_state
+
+import bundledyn as bd
+from bundledyn._cli import main
+from bundledyn._dynamics import reference_accelerations
+
+MASS, ARM, G = 2.0, 0.3, 9.81
+INERTIA_CM = jnp.diag(jnp.array([0.05, 0.04, 0.03]))
+AXIS = jnp.array([1.0, 0.0, 0.0])
+
+
+class HingedBody(bd.AbstractMode):
+    r"""A rigid body on a hinge through its section frame's origin: $x = (\omega)$, the
+    rate about the unit `axis`, $\xi = (\omega a, 0)$, and $a^T I a\,\dot\omega = a\cdot\tau$
+    (the axial part of Euler's equation; the hinge's reactions have no torque about it)."""
+
+    axis: jax.Array
+
+    @property
+    def shape(self):
+        return bd.Free()
+
+    @property
+    def base(self):
+        return bd.FloatingBase()
+
+    def check(self, system, frame):
+        if system.shape_dim != 0 or frame is not None:
+            raise ValueError("`HingedBody` is for a rigid body in the Galilean frame.")
+
+    def pack(self, scene, g, q, U, qdot):
+        return g, (self.axis @ U[:3])[None]
+
+    def unpack(self, scene, t, y):
+        g, x = y
+        U = jnp.concatenate([x[0] * self.axis, jnp.zeros(3, x.dtype)])
+        return g, x[:0], U, x[:0]
+
+    def encode(self, scene, t, state):
+        return self.pack(scene, state.g, state.q, state.xi, state.qdot)
+
+    def decode(self, scene, t, y):
+        g, q, U, qdot = self.unpack(scene, t, y)
+        return bd.State(g, q, U, qdot), U
+
+    def body_field(self, scene, t, y):
+        g, q, U, qdot = self.unpack(scene, t, y)
+        torque = scene.forces(bd.Kinematics(t, g, q, U, qdot))[0][:3]
+        inertia = self.axis @ bd.locked_inertia(scene.system, q)[:3, :3] @ self.axis
+        return U, (self.axis @ torque / inertia)[None]
+
+    def kinematics(self, scene, t, y):
+        g, q, U, qdot = self.unpack(scene, t, y)
+        return bd.Kinematics(t, g, q, U, qdot)
+
+    def recharted(self, scene, t, y):
+        return y
+
+    def window_chart(self, scene):
+        raise ValueError("`HingedBody` scenes are not identified (no window chart).")
+
+
+BODY = bd.RigidBody(MASS, jnp.array([0.0, 0.0, -ARM]), INERTIA_CM)
+SCENE = bd.Scene(BODY, (bd.Gravity(G),), mode=HingedBody(AXIS))
+T1 = 2.0
+
+
+def _start(theta, omega):
+    g = bd.lie.se3_exp(jnp.concatenate([theta * AXIS, jnp.zeros(3)]))
+    return bd.State(g, xi=jnp.concatenate([omega * AXIS, jnp.zeros(3)]))
+
+
+def _angle(g):
+    return jnp.arctan2(g[..., 2, 1], g[..., 1, 1])
+
+
+def _pendulum(theta0, omega0, ts):
+    r"""$\ddot\theta = -(m g l / I_a)\sin\theta$, the compound pendulum, integrated on its own."""
+    inertia = INERTIA_CM[0, 0] + MASS * ARM**2
+    field = lambda t, y, args: jnp.stack([y[1], -MASS * G * ARM / inertia * jnp.sin(y[0])])
+    sol = diffrax.diffeqsolve(
+        diffrax.ODETerm(field),
+        diffrax.Tsit5(),
+        0.0,
+        ts[-1],
+        None,
+        jnp.stack([theta0, omega0]),
+        saveat=diffrax.SaveAt(ts=ts),
+        stepsize_controller=diffrax.PIDController(rtol=1e-13, atol=1e-13),
+        max_steps=None,
+    )
+    return sol.ys
+
+
+@eqx.filter_jit
+def _simulate(theta0, omega0, ts):
+    return bd.simulate(
+        SCENE, _start(theta0, omega0), ts[-1], rtol=1e-12, atol=1e-12, saveat=diffrax.SaveAt(ts=ts)
+    )
+
+
+def test_a_mode_of_the_test_file_simulates_the_compound_pendulum():
+    ts = jnp.linspace(0.0, T1, 21)
+    theta0, omega0 = jnp.asarray(1.2), jnp.asarray(0.5)
+    traj = _simulate(theta0, omega0, ts)
+    expected = _pendulum(theta0, omega0, ts)
+    np.testing.assert_allclose(_angle(traj.g), expected[:, 0], atol=1e-9)
+    np.testing.assert_allclose(traj.xi[:, 0], expected[:, 1], atol=1e-9)
+    energy = traj.diagnostics().energy  # T + the gravity's potential, by the library's own code
+    np.testing.assert_allclose(energy, energy[0], atol=1e-10 * abs(float(energy[0])))
+
+
+def test_gradients_through_a_mode_of_the_test_file():
+    def final_rate(omega0, mass):
+        scene = eqx.tree_at(lambda s: s.system.mass, SCENE, mass)
+        state = _start(jnp.asarray(0.7), omega0)
+        traj = bd.simulate(scene, state, T1, rtol=1e-12, atol=1e-12)
+        return traj.xi[-1, 0]
+
+    args = (jnp.asarray(0.3), jnp.asarray(MASS))
+    grads = jax.grad(final_rate, argnums=(0, 1))(*args)
+    for k, grad in enumerate(grads):
+        step = 1e-5
+        up = list(args)
+        down = list(args)
+        up[k], down[k] = args[k] + step, args[k] - step
+        central = (final_rate(*up) - final_rate(*down)) / (2 * step)
+        np.testing.assert_allclose(grad, central, rtol=1e-6, atol=1e-8)
+    # The mass cancels in a compound pendulum whose inertia is all the point mass's; here it
+    # does not (I_cm ≠ 0), so the mass's gradient is not zero and the check above means something.
+    assert abs(float(grads[1])) > 1e-4
+
+
+def test_the_command_line_runs_a_mode_of_the_test_file(tmp_path, monkeypatch, capsys):
+    cat = bd.SceneFile.load(bd.scenes / "falling_cat.toml")
+    hinged = dataclasses.replace(
+        cat, scene=SCENE, state=_start(jnp.asarray(1.2), jnp.asarray(0.5)), solids=None
+    )
+    monkeypatch.setattr(bd.SceneFile, "load", classmethod(lambda cls, path: hinged))
+    assert main(["run", "hinged.toml", "--out", str(tmp_path)]) == 0
+    printed = capsys.readouterr().out
+    assert "mode HingedBody" in printed
+    saved = np.load(tmp_path / "falling_cat.npz")
+    expected = _pendulum(jnp.asarray(1.2), jnp.asarray(0.5), jnp.asarray(saved["ts"]))
+    np.testing.assert_allclose(_angle(saved["g"]), expected[:, 0], atol=1e-7)
+    np.testing.assert_allclose(saved["energy"], saved["energy"][0], rtol=1e-7)
+    assert (tmp_path / "falling_cat_drift.png").stat().st_size > 0
+
+
+def test_a_mode_and_a_shape_or_base_together_are_refused():
+    with pytest.raises(ValueError, match="either `mode` or `shape` and `base`"):
+        bd.Scene(BODY, mode=HingedBody(AXIS), base=bd.PrescribedBase.fixed())
+    with pytest.raises(ValueError, match="rigid body in the Galilean frame"):
+        bd.Scene(BODY, mode=HingedBody(AXIS), frame=bd.Boosted(jnp.ones(3)))
+
+
+def _bend(t):
+    return jnp.array([0.3 * jnp.sin(2.0 * t), -0.2 + 0.4 * t, 0.25 * jnp.cos(3.0 * t)])
+
+
+def _deck(t):
+    """A base heaving and rolling like a ship's deck."""
+    twist = jnp.array([0.2 * jnp.sin(1.5 * t), 0.0, 0.0, 0.0, 0.0, 0.1 * jnp.sin(2.0 * t)])
+    return bd.lie.se3_exp(twist)
+
+
+_SPRING = bd.ShapeSpring(jnp.array([2.0, 1.5, 3.0]))
+_CHAIN_STATE = chain3_state()
+_RIGID_STATE = bd.State(jnp.eye(4), xi=jnp.array([0.4, -1.1, 0.7, 0.2, 0.1, -0.3]))
+_ALL_ROWS = slice(None)
+
+# name: (scene, state, the rows of the reference form the mode integrates, whether the
+# energy is conserved). The prescribed shape and the moving deck do work on the system.
+MODE_SCENES = {
+    "free_shape": (bd.Scene(chain(3), (bd.Gravity(), _SPRING)), _CHAIN_STATE, _ALL_ROWS, True),
+    "rigid_body": (bd.Scene(asymmetric_body(), (bd.Gravity(),)), _RIGID_STATE, _ALL_ROWS, True),
+    "prescribed_shape": (
+        bd.Scene(chain(3), (bd.Gravity(),), shape=bd.Prescribed(_bend)),
+        _CHAIN_STATE,
+        slice(0, 6),
+        False,
+    ),
+    "prescribed_base": (
+        bd.Scene(chain(3), (bd.Gravity(), _SPRING), base=bd.PrescribedBase(_deck)),
+        _CHAIN_STATE,
+        slice(6, None),
+        False,
+    ),
+    "fixed_base": (
+        bd.Scene(chain(3), (bd.Gravity(), _SPRING), base=bd.PrescribedBase.fixed()),
+        _CHAIN_STATE,
+        slice(6, None),
+        True,
+    ),
+    "free_shape_falling_frame": (
+        bd.Scene(chain(3), (bd.Gravity(), _SPRING), frame=bd.FreeFalling(9.81)),
+        _CHAIN_STATE,
+        _ALL_ROWS,
+        True,
+    ),
+    "hinged_body": (SCENE, _start(jnp.asarray(1.2), jnp.asarray(0.5)), slice(0, 1), True),
+}
+MODE_NAMES = list(MODE_SCENES)
+
+
+def test_every_built_in_mode_is_in_the_battery():
+    built_in = {bd.FreeShapeMode, bd.RigidBodyMode, bd.PrescribedShapeMode, bd.PrescribedBaseMode}
+    assert built_in <= {type(scene.mode) for scene, *_ in MODE_SCENES.values()}
+
+
+@pytest.mark.parametrize("name", MODE_NAMES)
+def test_layout_round_trips(name):
+    scene, state, _, _ = MODE_SCENES[name]
+    term = bd.SceneTerm(scene)
+    t = jnp.asarray(0.37)
+    y = term.encode(t, state)
+    decoded = term.decode(t, y)
+    again = term.encode(t, decoded)
+    for a, b in zip(jax.tree.leaves(again), jax.tree.leaves(y), strict=True):
+        np.testing.assert_allclose(a, b, rtol=1e-14, atol=1e-14)
+    for a, b in zip(
+        jax.tree.leaves(term.pack(*term.unpack(t, y))), jax.tree.leaves(y), strict=True
+    ):
+        np.testing.assert_allclose(a, b, rtol=1e-14, atol=1e-14)
+    state_again, U = term.decode_with_locked_velocity(t, y)
+    np.testing.assert_allclose(U, term.unpack(t, y)[2], rtol=1e-14, atol=1e-14)
+    np.testing.assert_allclose(state_again.xi, decoded.xi, rtol=1e-14, atol=1e-14)
+
+
+def _reference_residual(scene, t, y):
+    r"""$G a - h$ of the reference form in the Galilean frame, with $a$ the rates of the
+    decoded velocities along the mode's field (by a JVP of `kinematics` along it)."""
+    term = bd.SceneTerm(scene)
+    xi_pose, xdot = term.body_vf(t, y, None)
+    tangent = (y[0] @ bd.lie.hat(xi_pose), xdot)
+
+    def velocities(t, y):
+        kin = term.kinematics(t, y)
+        return kin.xi, kin.qdot
+
+    kin = term.kinematics(t, y)
+    _, (xi_dot, qddot) = jax.jvp(velocities, (t, y), (jnp.ones_like(t), tangent))
+    F, Q = scene.forces(kin)
+    system = scene.system
+    G = system.metric(kin.q)
+    a = jnp.concatenate([xi_dot, qddot])
+    a_ref = jnp.concatenate(reference_accelerations(system, kin.q, kin.xi, kin.qdot, F, Q))
+    # G a_ref = h: the rows the mode integrates hold where G (a - a_ref) vanishes on them.
+    return G @ (a - a_ref), jnp.max(jnp.abs(G @ a_ref))
+
+
+@pytest.mark.parametrize("name", MODE_NAMES)
+def test_field_against_the_reference_form(name):
+    scene, state, rows, _ = MODE_SCENES[name]
+    t = jnp.asarray(0.37)
+    y = bd.SceneTerm(scene).encode(t, state)
+    residual, size = _reference_residual(scene, t, y)
+    if isinstance(scene.mode, HingedBody):
+        residual = (AXIS @ residual[:3])[None]  # the axial row: the hinge reacts in the others
+    assert float(jnp.max(jnp.abs(residual[rows]))) < 1e-12 * max(float(size), 1.0)
+
+
+@pytest.mark.parametrize("name", [n for n in MODE_NAMES if MODE_SCENES[n][3]])
+def test_energy_is_conserved(name):
+    scene, state, _, _ = MODE_SCENES[name]
+    traj = bd.simulate(
+        scene, state, 1.0, rtol=1e-11, atol=1e-11, saveat=diffrax.SaveAt(ts=jnp.linspace(0, 1, 5))
+    )
+    energy = traj.diagnostics().energy
+    kinetic = jax.vmap(ft.partial(bd.kinetic_energy, scene.system))(traj.q, traj.xi, traj.qdot)
+    # The total is a difference of kinetic and potential energies: tolerance on their size.
+    scale = float(jnp.max(jnp.abs(energy)) + jnp.max(jnp.abs(kinetic)))
+    np.testing.assert_allclose(energy, energy[0], rtol=0, atol=1e-9 * scale)
+
+
+@pytest.mark.parametrize("name", MODE_NAMES)
+def test_stored_steps_adjoint_against_recursive_checkpoints(name):
+    scene, state, _, _ = MODE_SCENES[name]
+
+    def loss(velocities, adjoint):
+        start = dataclasses.replace(state, xi=velocities[0], qdot=velocities[1])
+        traj = bd.simulate(scene, start, 0.4, rtol=1e-9, atol=1e-9, adjoint=adjoint)
+        return jnp.sum(traj.xi[-1] ** 2) + jnp.sum(traj.g[-1, :3, 3]) + jnp.sum(traj.qdot[-1])
+
+    velocities = (state.xi, state.qdot)
+    stored = jax.grad(loss)(velocities, bd.StoredStepsAdjoint())
+    checkpointed = jax.grad(loss)(velocities, diffrax.RecursiveCheckpointAdjoint())
+    for a, b in zip(stored, checkpointed, strict=True):
+        np.testing.assert_allclose(a, b, rtol=1e-10, atol=1e-10)
+    # The velocities the mode integrates reach the loss (a given base's do not).
+    assert max(float(jnp.max(jnp.abs(g), initial=0.0)) for g in stored) > 1e-3
