@@ -1,4 +1,4 @@
-"""The package's structure: imports flow one way (DESIGN §4), between modules and between
+"""The package's structure: imports flow one way (architecture §4.1), between modules and between
 folders, and the type checker passes."""
 
 import ast
@@ -12,12 +12,13 @@ import bundledyn
 
 PACKAGE = pathlib.Path(bundledyn.__file__).parent
 
-# DESIGN §4's layers, lowest first: a module may import its own layer and those before it.
+# The layers of architecture §4.1 (docs/devdocs/architecture.md), lowest first: a module may
+# import its own layer and those before it.
 LAYERS = (
     ("lie", {"_lie", "lie", "_linalg", "_validation", "_xla_flags", "_files", "_paths"}),
     ("systems", {"_systems", "_solids", "_state", "_precision"}),
     ("geometry", {"_geometry", "_holonomy"}),
-    ("dynamics", {"_dynamics", "_dynamics_vjp"}),
+    ("dynamics", {"_dynamics", "_dynamics_vjp", "_nonholonomic"}),
     ("scene", {"_effects", "_frames", "_modes", "_scene"}),
     ("term", {"_term", "_reverse_term"}),
     ("integrators", {"_solver"}),
@@ -71,7 +72,7 @@ def _layer(module: str) -> int:
     for rank, (_, names) in enumerate(LAYERS):
         if top in names:
             return rank
-    raise AssertionError(f"{module} is in no layer of DESIGN §4: add it to LAYERS")
+    raise AssertionError(f"{module} is in no layer of architecture §4.1: add it to LAYERS")
 
 
 def _cycles(graph: dict[str, set[str]]) -> list[list[str]]:

@@ -1,0 +1,58 @@
+r"""Nonholonomic systems in Lagrangian coordinates (seed 001, §54–§60).
+
+A system given by its kinetic energy $T(q, \dot q, t)$, its active forces and kinematic
+constraints, either as Pfaffian rows (76) or in the parametric form (77); Maggi's equations
+(82) and Appell's (§60) assembled by autodiff and solved for the rates of the kinematic
+characteristics; the split of Maggi's equations into nonholonomic and holonomic terms
+((84)–(93)); a diffrax term on $(q, e)$; the Chaplygin sleigh and the vertical rolling disc.
+"""
+
+from ._appell import acceleration_energy, appell_accelerations
+from ._constraints import (
+    AbstractKinematicConstraints,
+    constrained_accelerations,
+    constrained_velocities,
+    kinematic_characteristics,
+)
+from ._covariants import bilinear_covariants
+from ._equations import AbstractNonholonomicEquations, AppellEquations, MaggiEquations
+from ._maggi import (
+    characteristic_forces,
+    lagrange_binomials,
+    maggi_accelerations,
+    maggi_equations,
+)
+from ._parametric import ParametricConstraints
+from ._pfaffian import PfaffianConstraints
+from ._rolling_disc import RollingDisc
+from ._sleigh import ChaplyginSleigh
+from ._split import holonomic_terms, nonholonomic_terms
+from ._system import AbstractNonholonomicSystem, NonholonomicSystem, mechanical_energy
+from ._term import NonholonomicTerm
+
+__all__ = [
+    "AbstractKinematicConstraints",
+    "AbstractNonholonomicEquations",
+    "AbstractNonholonomicSystem",
+    "AppellEquations",
+    "ChaplyginSleigh",
+    "MaggiEquations",
+    "NonholonomicSystem",
+    "NonholonomicTerm",
+    "ParametricConstraints",
+    "PfaffianConstraints",
+    "RollingDisc",
+    "acceleration_energy",
+    "appell_accelerations",
+    "bilinear_covariants",
+    "characteristic_forces",
+    "constrained_accelerations",
+    "constrained_velocities",
+    "holonomic_terms",
+    "kinematic_characteristics",
+    "lagrange_binomials",
+    "maggi_accelerations",
+    "maggi_equations",
+    "mechanical_energy",
+    "nonholonomic_terms",
+]
