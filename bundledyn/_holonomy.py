@@ -42,7 +42,7 @@ def horizontal_lift(system: AbstractSystem, path, *, steps: int = 64) -> Float[A
         increment = 0.5 * h * (X1 + X2) - np.sqrt(3.0) / 12.0 * h * h * lie.bracket(X2, X1)
         return g @ lie.se3_exp(increment), None
 
-    s0 = jnp.asarray(path(0.0)).dtype.type(0) + h * jnp.arange(steps)
+    s0 = jnp.asarray(path(0.0)).dtype.type(0) + h * jnp.arange(steps).astype(float)
     g, _ = jax.lax.scan(step, jnp.eye(4, dtype=s0.dtype), s0)
     return g
 
@@ -65,8 +65,9 @@ def square_loop_holonomy(system, q, u, w, eps, *, steps: int = 16):
 
     def path(s):
         # One parameter for the four sides; Magnus steps never straddle a corner.
-        side = jnp.clip(jnp.floor(4 * s), 0, 3).astype(int)
-        t = 4 * s - side
+        corner = jnp.clip(jnp.floor(4 * s), 0, 3)
+        side = corner.astype(int)
+        t = 4 * s - corner
         return corners[side] + t * (corners[side + 1] - corners[side])
 
     return horizontal_lift(system, path, steps=4 * steps)

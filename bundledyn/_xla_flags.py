@@ -54,7 +54,8 @@ def use_cpu_xla_flags() -> bool:
 
     A flag already present in `XLA_FLAGS` (either value) is left as the user set it. XLA
     reads the variable once, when the first computation starts the backend; called later,
-    this changes nothing and warns.
+    this changes nothing, and warns unless `XLA_FLAGS` already names every flag (called
+    again, as the command line does inside a program that called it first).
 
     **Returns:**
 
@@ -62,7 +63,12 @@ def use_cpu_xla_flags() -> bool:
     """
     from jax._src import xla_bridge
 
+    flags = os.environ.get("XLA_FLAGS", "").split()
+    names = {flag.split("=")[0] for flag in flags}
+    missing = [flag for flag in CPU_XLA_FLAGS if flag.split("=")[0] not in names]
     if xla_bridge.backends_are_initialized():
+        if not missing:
+            return False
         warnings.warn(
             "bundledyn.use_cpu_xla_flags() was called after JAX started its backend, so XLA "
             "will not read the flags; call it before the first JAX computation, or set "
@@ -70,8 +76,5 @@ def use_cpu_xla_flags() -> bool:
             stacklevel=2,
         )
         return False
-    flags = os.environ.get("XLA_FLAGS", "").split()
-    names = {flag.split("=")[0] for flag in flags}
-    flags += [flag for flag in CPU_XLA_FLAGS if flag.split("=")[0] not in names]
-    os.environ["XLA_FLAGS"] = " ".join(flags)
+    os.environ["XLA_FLAGS"] = " ".join(flags + missing)
     return True

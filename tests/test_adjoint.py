@@ -11,6 +11,7 @@ import jax.numpy as jnp
 import numpy as np
 import optimistix as optx
 import pytest
+from registry import ADJOINTS, SOLVERS
 from systems import asymmetric_body, chain
 
 import bundledyn as bd
@@ -53,7 +54,8 @@ def _loss(case, adjoint, options, params):
     scene = eqx.tree_at(lambda s: s.system.inertia, scene, inertia)
     state = bd.State(state.g, state.q, xi, state.qdot)
     traj = bd.simulate(scene, state, T1, adjoint=adjoint, rtol=1e-8, atol=1e-8, **options)
-    weights = 1.0 + jnp.arange(traj.ts.shape[0])[:, None]  # each save counts differently
+    # Each save counts differently.
+    weights = 1.0 + jnp.arange(traj.ts.shape[0], dtype=float)[:, None]
     parts = [traj.g.reshape(len(traj.ts), -1), traj.U, traj.q, traj.ts[:, None]]
     steps = (traj.stats["num_accepted_steps"], traj.stats["num_rejected_steps"])
     return sum(jnp.sum(weights * _finite(p) ** 2) for p in parts), steps
@@ -86,11 +88,13 @@ def _past(t, y, args, **kwargs):
 OPTIONS = {
     "RKMK87 ts": dict(saveat=diffrax.SaveAt(t0=True, ts=TS, t1=True)),
     # A first step far too long: the controller rejects steps, which the record skips.
-    "RKMK54 ts": dict(solver=bd.RKMK54(), dt0=0.8, saveat=diffrax.SaveAt(ts=TS, t1=True)),
-    "RKMK4 ts": dict(solver=bd.RKMK4(), dt0=0.05, saveat=diffrax.SaveAt(ts=TS, t1=True)),
-    "LieEuler ts": dict(solver=bd.LieEuler(), dt0=0.05, saveat=diffrax.SaveAt(ts=TS, t1=True)),
+    "RKMK54 ts": dict(solver=SOLVERS["RKMK54"], dt0=0.8, saveat=diffrax.SaveAt(ts=TS, t1=True)),
+    "RKMK4 ts": dict(solver=SOLVERS["RKMK4"], dt0=0.05, saveat=diffrax.SaveAt(ts=TS, t1=True)),
+    "LieEuler ts": dict(
+        solver=SOLVERS["LieEuler"], dt0=0.05, saveat=diffrax.SaveAt(ts=TS, t1=True)
+    ),
     "VariationalMidpoint ts": dict(
-        solver=bd.VariationalMidpoint(), dt0=0.05, saveat=diffrax.SaveAt(ts=TS, t1=True)
+        solver=SOLVERS["VariationalMidpoint"], dt0=0.05, saveat=diffrax.SaveAt(ts=TS, t1=True)
     ),
     "RKMK87 steps": dict(
         dt0=0.1,
@@ -104,13 +108,13 @@ OPTIONS = {
     "RKMK87 boolean event": dict(event=diffrax.Event(_past)),
 }
 
-CHECKPOINTED = diffrax.RecursiveCheckpointAdjoint()
+CHECKPOINTED = ADJOINTS["checkpointed"]
 # Where the solver is not the point (the chain under effects, its field's reverse pass), the
 # reference is forward-mode sensitivities: a derivation sharing nothing with either reverse
 # sweep, and cheaper to compile than the checkpointed gradient.
-FORWARD = diffrax.ForwardMode()
-STORED = bd.StoredStepsAdjoint()
-AUTODIFF_FIELD = bd.StoredStepsAdjoint(field_reverse="autodiff")
+FORWARD = ADJOINTS["forward"]
+STORED = ADJOINTS["stored steps"]
+AUTODIFF_FIELD = ADJOINTS["stored steps, autodiff field"]
 
 
 def _kept_bytes(stages):

@@ -15,13 +15,13 @@ import bundledyn as bd
 from bundledyn._dynamics import reference_accelerations
 from bundledyn._effects import Kinematics
 from bundledyn._geometry import connection
+from bundledyn._systems._ball_chart import ball_columns
 from bundledyn._term import (
     ReplayedSceneTerm,
     ReverseModeSceneTerm,
     for_replay,
     for_reverse_mode,
 )
-from bundledyn._systems._ball_chart import ball_columns
 
 SHAPED = [name for name, make in SYSTEMS.items() if make().shape_dim > 0]
 # Every shaped system at a generic state; the singular states on systems that have them:
@@ -41,7 +41,7 @@ def _scene(name):
     d = system.shape_dim
     effects = [
         bd.Gravity(9.81, (0.3, -0.2, -1.0)),
-        bd.ShapeSpring(0.7 + 0.1 * jnp.arange(d)),
+        bd.ShapeSpring(0.7 + 0.1 * jnp.arange(d, dtype=float)),
         bd.ShapeDamper(0.2),
     ]
     return bd.Scene(system, effects)

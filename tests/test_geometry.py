@@ -90,7 +90,7 @@ def test_locked_inertia_has_theorem_2_3_form(name, key):
         .at[:, :3, :3]
         .set(inertia)
         .at[:, 3:, 3:]
-        .set(m[:, None, None] * jnp.eye(3))
+        .set(m[:, None, None] * jnp.eye(3)[None])
     )
     expected = jnp.einsum("nji,njk,nkl->nil", P, D, P)
     np.testing.assert_allclose(out["I_r"], expected, atol=1e-12 * np.abs(expected).max())
@@ -144,7 +144,7 @@ def test_horizontal_motion_has_zero_momentum(name, key):
 def test_curvature_matches_small_loop_holonomy(make):
     """−log(holonomy)/ε² → curvature, the error shrinking like ε (seed 004 §2, structure eq.)."""
     system = make()
-    q = 0.3 * jnp.ones(system.shape_dim) + 0.1 * jnp.arange(system.shape_dim)
+    q = 0.3 * jnp.ones(system.shape_dim) + 0.1 * jnp.arange(system.shape_dim, dtype=float)
     # Called on concrete values, the curvature is one compiled program (not one per primitive).
     Omega, programs = lowerings(bd.curvature, system, q)
     assert programs <= 1

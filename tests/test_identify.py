@@ -20,7 +20,8 @@ from systems import chain
 import bundledyn as bd
 from bundledyn import identify
 
-pytestmark = pytest.mark.usefixtures("optimized_compilation")  # fits: time goes into running
+# Multibody fits: slow; test_identify_rigid.py is the everyday identification check.
+pytestmark = [pytest.mark.usefixtures("optimized_compilation"), pytest.mark.slow]
 
 T1, RATE = 2.0, 100
 STATE0 = bd.State(
@@ -270,7 +271,7 @@ def arm_fit():
     rms = lambda x: float(jnp.sqrt(jnp.mean(x**2)))
     noise = identify.Noise(q=0.01 * rms(traj.q), qdot=0.01 * rms(traj.qdot))
     torque_noise = 0.01 * jnp.sqrt(jnp.mean(torque**2, axis=0))
-    measured_torque = torque + torque_noise * jax.random.normal(keys[2], torque.shape)
+    measured_torque = torque + torque_noise[None, :] * jax.random.normal(keys[2], torque.shape)
     data = identify.Measurements(
         ts,
         q=traj.q + noise.q * jax.random.normal(keys[0], traj.q.shape),

@@ -28,10 +28,14 @@ from bundledyn._cli import main
 from bundledyn._identify_file import run_file
 
 mujoco = pytest.importorskip("mujoco")
-pytestmark = pytest.mark.usefixtures("optimized_compilation")  # fits: time goes into running
+# Fits against mujoco.sysid's model and the command: slow; test_identify_rigid.py is the
+# everyday identification check.
+pytestmark = [pytest.mark.usefixtures("optimized_compilation"), pytest.mark.slow]
 
 # The chain with motors at its hinges (bundledyn ignores them: the torques are inputs).
 CHAIN = (bd.models / "floating_chain.xml").read_text()
+# What importing the chain warns of: its motors are not bundledyn's (they are the inputs).
+MOTORS = "ignored from the MuJoCo model: 2 actuator"
 RATE, T1, NOISE = 100, 4.0, 0.01
 
 
@@ -261,7 +265,8 @@ def identified(tmp_path_factory, optimized_compilation):
     (folder / "identify.toml").write_text(CONFIG)
     out = folder / "out"
     out.mkdir()
-    file = bd.IdentificationFile.load(folder / "identify.toml")
+    with pytest.warns(UserWarning, match=MOTORS):
+        file = bd.IdentificationFile.load(folder / "identify.toml")
     return folder, out, file, run_file(file, out, progress=False, plots=True)
 
 
@@ -336,7 +341,8 @@ def test_the_fitted_mjcf_holds_the_fitted_bodies(identified):
     """MuJoCo reads the fitted model back, and its bodies are the fit's pseudo-inertias
     (to the 6 significant digits MuJoCo's XML writer keeps)."""
     _, out, _, _ = identified
-    fitted = bd.Multibody.from_mjcf(out / "chain_fitted.xml")
+    with pytest.warns(UserWarning, match=MOTORS):
+        fitted = bd.Multibody.from_mjcf(out / "chain_fitted.xml")
     P = np.asarray(json.loads((out / "chain_estimates.json").read_text())["pseudo_inertias"])
     np.testing.assert_allclose(fitted.pseudo_inertias(), P, rtol=0, atol=2e-6 * np.abs(P).max())
 
@@ -347,6 +353,7 @@ def test_a_file_without_a_gauge_is_refused_with_the_fix(tmp_path, capsys):
     (tmp_path / "bad.toml").write_text(
         '[model]\npath = "model.xml"\n[data]\npath = "d.npz"\n[fit]\nbodies = ["arm"]\n'
     )
-    assert main(["identify", str(tmp_path / "bad.toml"), "--out", str(tmp_path)]) == 2
+    with pytest.warns(UserWarning, match=MOTORS):
+        assert main(["identify", str(tmp_path / "bad.toml"), "--out", str(tmp_path)]) == 2
     message = capsys.readouterr().err
     assert "`fit.gauge`" in message and "known_mass" in message

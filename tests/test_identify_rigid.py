@@ -34,7 +34,7 @@ def _tumbling(body, xi0, noise_level, t1=10.0, rate=50, seed=1, inertia0=None, *
     g = traj.g.at[:, :3, :3].set(traj.g[:, :3, :3] @ turn)
     g = g.at[:, :3, 3].add(noise.position * jax.random.normal(keys[1], (len(ts), 3)))
     scale = jnp.array([noise.angular_velocity] * 3 + [noise.linear_velocity] * 3)
-    xi = traj.xi + scale * jax.random.normal(keys[2], traj.xi.shape)
+    xi = traj.xi + scale[None, :] * jax.random.normal(keys[2], traj.xi.shape)
     empty = jnp.zeros((len(ts), 0))
     data = identify.Measurements(ts, pose=g, xi=xi, q=empty, qdot=empty, noise=noise)
     inertia0 = 0.4 * jnp.eye(3) if inertia0 is None else inertia0

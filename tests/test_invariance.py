@@ -65,7 +65,7 @@ class _RigidByConstruction(eqx.Module):
             return self.centre @ jnp.sin(q_)
 
         c, dc = c_of(q), jax.jacfwd(c_of)(q)
-        A_w = self.angular[0] + self.angular[1] * jnp.cos(q)
+        A_w = self.angular[0] + self.angular[1] * jnp.cos(q)[None]
         A_v = dc + bd.lie.hat(c) @ A_w  # the connection's velocity at c equals dc/dq
         U = xi + jnp.concatenate([A_w, A_v]) @ qdot
         l = self.inertia + 0.1 * jnp.diag(jnp.sin(q[:3]) ** 2)

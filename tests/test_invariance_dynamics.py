@@ -136,7 +136,7 @@ def test_an_imported_model_with_passive_joints_is_galilean_and_falls_with_its_gr
     with the model's gravity it moves as without gravity (Theorems 2.2 and 3.4)."""
     from systems import PASSIVE
 
-    with pytest.warns(UserWarning, match="tendon"):
+    with pytest.warns(UserWarning, match="tendon"), pytest.warns(UserWarning, match=r"'j2' \(ref"):
         scene = bd.Scene.from_mjcf(PASSIVE, passive=True, gravity=True)
     *passive, gravity = scene.effects
     assert isinstance(gravity, bd.Gravity) and len(passive) == 3

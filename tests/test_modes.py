@@ -20,7 +20,8 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
-from systems import asymmetric_body, chain, chain3_state
+import registry
+from registry import ADJOINTS, SOLVERS, ModeScene
 
 import bundledyn as bd
 from bundledyn._cli import main
@@ -176,51 +177,10 @@ def test_a_mode_and_a_shape_or_base_together_are_refused():
         bd.Scene(BODY, mode=HingedBody(AXIS), frame=bd.Boosted(jnp.ones(3)))
 
 
-def _bend(t):
-    return jnp.array([0.3 * jnp.sin(2.0 * t), -0.2 + 0.4 * t, 0.25 * jnp.cos(3.0 * t)])
-
-
-def _deck(t):
-    """A base heaving and rolling like a ship's deck."""
-    twist = jnp.array([0.2 * jnp.sin(1.5 * t), 0.0, 0.0, 0.0, 0.0, 0.1 * jnp.sin(2.0 * t)])
-    return bd.lie.se3_exp(twist)
-
-
-_SPRING = bd.ShapeSpring(jnp.array([2.0, 1.5, 3.0]))
-_CHAIN_STATE = chain3_state()
-_RIGID_STATE = bd.State(jnp.eye(4), xi=jnp.array([0.4, -1.1, 0.7, 0.2, 0.1, -0.3]))
-_ALL_ROWS = slice(None)
-
-# name: (scene, state, the rows of the reference form the mode integrates, whether the
-# energy is conserved). The prescribed shape and the moving deck do work on the system.
+# Every mode's scene of the registry, and the hinged body, whose mode this file alone knows.
 MODE_SCENES = {
-    "free_shape": (bd.Scene(chain(3), (bd.Gravity(), _SPRING)), _CHAIN_STATE, _ALL_ROWS, True),
-    "rigid_body": (bd.Scene(asymmetric_body(), (bd.Gravity(),)), _RIGID_STATE, _ALL_ROWS, True),
-    "prescribed_shape": (
-        bd.Scene(chain(3), (bd.Gravity(),), shape=bd.Prescribed(_bend)),
-        _CHAIN_STATE,
-        slice(0, 6),
-        False,
-    ),
-    "prescribed_base": (
-        bd.Scene(chain(3), (bd.Gravity(), _SPRING), base=bd.PrescribedBase(_deck)),
-        _CHAIN_STATE,
-        slice(6, None),
-        False,
-    ),
-    "fixed_base": (
-        bd.Scene(chain(3), (bd.Gravity(), _SPRING), base=bd.PrescribedBase.fixed()),
-        _CHAIN_STATE,
-        slice(6, None),
-        True,
-    ),
-    "free_shape_falling_frame": (
-        bd.Scene(chain(3), (bd.Gravity(), _SPRING), frame=bd.FreeFalling(9.81)),
-        _CHAIN_STATE,
-        _ALL_ROWS,
-        True,
-    ),
-    "hinged_body": (SCENE, _start(jnp.asarray(1.2), jnp.asarray(0.5)), slice(0, 1), True),
+    **registry.MODE_SCENES,
+    "hinged_body": ModeScene(SCENE, _start(jnp.asarray(1.2), jnp.asarray(0.5)), slice(0, 1), True),
 }
 MODE_NAMES = list(MODE_SCENES)
 
@@ -295,18 +255,27 @@ def test_energy_is_conserved(name):
     np.testing.assert_allclose(energy, energy[0], rtol=0, atol=1e-9 * scale)
 
 
-@pytest.mark.parametrize("name", MODE_NAMES)
+# Two gradients compiled per mode: the rigid body and the hinged body everyday, the rest
+# (whose free-shape field test_adjoint.py checks everyday) in the slow part.
+_EVERYDAY_ADJOINT = ("rigid_body", "hinged_body")
+
+
+@pytest.mark.parametrize(
+    "name",
+    [n if n in _EVERYDAY_ADJOINT else pytest.param(n, marks=pytest.mark.slow) for n in MODE_NAMES],
+)
 def test_stored_steps_adjoint_against_recursive_checkpoints(name):
     scene, state, _, _ = MODE_SCENES[name]
 
     def loss(velocities, adjoint):
         start = dataclasses.replace(state, xi=velocities[0], qdot=velocities[1])
-        traj = bd.simulate(scene, start, 0.4, rtol=1e-9, atol=1e-9, adjoint=adjoint)
+        # RKMK4's four stages compile in a third of RKMK87's time; the adjoint replays both.
+        traj = bd.simulate(scene, start, 0.4, solver=SOLVERS["RKMK4"], dt0=0.05, adjoint=adjoint)
         return jnp.sum(traj.xi[-1] ** 2) + jnp.sum(traj.g[-1, :3, 3]) + jnp.sum(traj.qdot[-1])
 
     velocities = (state.xi, state.qdot)
-    stored = jax.grad(loss)(velocities, bd.StoredStepsAdjoint())
-    checkpointed = jax.grad(loss)(velocities, diffrax.RecursiveCheckpointAdjoint())
+    stored = jax.grad(loss)(velocities, ADJOINTS["stored steps"])
+    checkpointed = jax.grad(loss)(velocities, ADJOINTS["checkpointed"])
     for a, b in zip(stored, checkpointed, strict=True):
         np.testing.assert_allclose(a, b, rtol=1e-10, atol=1e-10)
     # The velocities the mode integrates reach the loss (a given base's do not).

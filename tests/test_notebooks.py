@@ -220,6 +220,7 @@ def test_figures_are_stored_as_images(name):
     assert all("image/png" in d for d in as_text), "figures kept as text: add %matplotlib inline"
 
 
+@pytest.mark.slow  # executes every notebook: minutes; the stored outputs are checked everyday
 @pytest.mark.parametrize("name", NOTEBOOKS)
 def test_runs_top_to_bottom(name):
     book = nbformat.read(FOLDER / name, as_version=4)

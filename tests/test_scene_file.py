@@ -5,6 +5,7 @@ import textwrap
 import jax.numpy as jnp
 import numpy as np
 import pytest
+from systems import CHAIN5_REFS
 
 import bundledyn as bd
 
@@ -111,8 +112,10 @@ def test_mjcf_model_effects_frame_and_solver(tmp_path):
         dt0 = 0.01
         """,
     )
-    sf = bd.SceneFile.load(path)
-    chain = bd.Multibody.from_mjcf(bd.models / "chain5.xml")
+    with pytest.warns(UserWarning, match=CHAIN5_REFS):
+        sf = bd.SceneFile.load(path)
+    with pytest.warns(UserWarning, match=CHAIN5_REFS):
+        chain = bd.Multibody.from_mjcf(bd.models / "chain5.xml")
     assert sf.scene.system.shape_dim == chain.shape_dim
     np.testing.assert_allclose(sf.scene.system.mass, chain.mass)
     gravity, damper = sf.scene.effects
@@ -174,8 +177,10 @@ def test_a_urdf_model_takes_standard_gravity(tmp_path):
 
 
 def test_load_system_reads_models_and_scenes(tmp_path):
-    assert bd.load_system(bd.models / "chain5.xml").shape_dim == 9
-    assert bd.load_system(bd.models / "arm.urdf").num_bodies >= 2
+    with pytest.warns(UserWarning, match=CHAIN5_REFS):
+        assert bd.load_system(bd.models / "chain5.xml").shape_dim == 9
+    with pytest.warns(UserWarning, match="ignored"):
+        assert bd.load_system(bd.models / "arm.urdf").num_bodies >= 2
     assert isinstance(bd.load_system(_write(tmp_path, RIGID)), bd.RigidBody)
     with pytest.raises(bd.SceneFileError, match=r"unknown model format '\.txt'"):
         bd.load_system(_write(tmp_path, "", "model.txt"))

@@ -26,11 +26,12 @@ import numpy as np
 import optimistix as optx
 import pytest
 import scipy.integrate
+from registry import RK_SOLVERS, RKMK87_STEP_STAGES_ONLY
 from traced import scan_lengths
 
 from bundledyn import AbstractBodyTerm, lie
 from bundledyn._solver._lie_euler import LieEuler
-from bundledyn._solver._rkmk import RKMK4, RKMK54, RKMK87
+from bundledyn._solver._rkmk import RKMK54, RKMK87
 from bundledyn._solver._tableau import (
     LieButcherTableau,
     dopri5_tableau,
@@ -334,11 +335,11 @@ def test_a_tableau_that_breaks_an_order_condition_is_refused(change, message):
 # --------------------------------------------------------------------------- accuracy
 
 FIXED = {
-    "LieEuler": (LieEuler(), 1, [64, 128, 256, 512]),
-    "RKMK4": (RKMK4(), 4, [8, 16, 32, 64]),
-    "RKMK54": (RKMK54(), 5, [12, 18, 27, 40]),
+    "LieEuler": (RK_SOLVERS["LieEuler"], 1, [64, 128, 256, 512]),
+    "RKMK4": (RK_SOLVERS["RKMK4"], 4, [8, 16, 32, 64]),
+    "RKMK54": (RK_SOLVERS["RKMK54"], 5, [12, 18, 27, 40]),
     # Errors 2e-7 ... 3e-11; the slope approaches 8 from below (7.85 rigid, 7.96 coupled).
-    "RKMK87": (RKMK87(), 8, [6, 8, 11, 16]),
+    "RKMK87": (RK_SOLVERS["RKMK87"], 8, [6, 8, 11, 16]),
 }
 
 
@@ -413,9 +414,9 @@ def test_dense_output_off_skips_the_dense_only_stage():
     and its dense output is NaN rather than silently wrong."""
     args = PROBLEMS["coupled"]
     assert _step_scan_lengths(RKMK87(), _f64(args)) == {14}
-    assert _step_scan_lengths(RKMK87(dense_output=False), _f64(args)) == {13}
+    assert _step_scan_lengths(RKMK87_STEP_STAGES_ONLY, _f64(args)) == {13}
     with_dense = solve(RKMK87(), pid(1e-8), args)
-    without = solve(RKMK87(dense_output=False), pid(1e-8), args)
+    without = solve(RKMK87_STEP_STAGES_ONLY, pid(1e-8), args)
     for a, b in zip(at_steps(with_dense), at_steps(without), strict=True):
         for leaf_a, leaf_b in zip(jax.tree.leaves(a), jax.tree.leaves(b), strict=True):
             np.testing.assert_array_equal(leaf_a, leaf_b)
@@ -436,19 +437,19 @@ def test_rigid_body_invariants():
 
 ON_GROUP = {  # name -> (solver, [(controller, dt0)], error of the dense output beyond 10x)
     "LieEuler": (
-        LieEuler(),
+        RK_SOLVERS["LieEuler"],
         [(diffrax.ConstantStepSize(), 0.25), (diffrax.ConstantStepSize(), 1e-3)],
         1e-11,
     ),
     "RKMK4": (
-        RKMK4(),
+        RK_SOLVERS["RKMK4"],
         [(diffrax.ConstantStepSize(), 0.5), (diffrax.ConstantStepSize(), 4e-3)],
         1e-11,
     ),
-    "RKMK54": (RKMK54(), [(pid(1e-3), None), (pid(1e-12), None)], 1e-11),
+    "RKMK54": (RK_SOLVERS["RKMK54"], [(pid(1e-3), None), (pid(1e-12), None)], 1e-11),
     # Fifth-order dense output over eighth-order steps: at pid(1e-12) SaveAt(ts) is 3e-10
     # off where the steps are 1.5e-12 off (diffrax.Dopri8 on the embedded system alike).
-    "RKMK87": (RKMK87(), [(pid(1e-3), None), (pid(1e-12), None)], 1e-9),
+    "RKMK87": (RK_SOLVERS["RKMK87"], [(pid(1e-3), None), (pid(1e-12), None)], 1e-9),
 }
 
 

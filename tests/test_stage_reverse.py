@@ -12,17 +12,12 @@ import equinox as eqx
 import jax
 import jax.numpy as jnp
 import pytest
+from registry import RK_SOLVERS, RKMK87_STEP_STAGES_ONLY
 from systems import asymmetric_body, chain
 
 import bundledyn as bd
 
-SOLVERS = {
-    "LieEuler": bd.LieEuler(),
-    "RKMK4": bd.RKMK4(),
-    "RKMK54": bd.RKMK54(),
-    "RKMK87": bd.RKMK87(),
-    "RKMK87, stages of the step only": bd.RKMK87(dense_output=False),
-}
+SOLVERS = {**RK_SOLVERS, "RKMK87, stages of the step only": RKMK87_STEP_STAGES_ONLY}
 
 
 def _chain():

@@ -126,7 +126,7 @@ def test_attitude_quaternions_are_continuous():
     angles = jnp.linspace(0.0, 4.0 * np.pi, 200)
     axis = jnp.array([1.0, 2.0, 2.0]) / 3.0
     g = jnp.zeros((200, 4, 4)).at[:, 3, 3].set(1.0)
-    g = g.at[:, :3, :3].set(lie.so3_exp(angles[:, None] * axis))
+    g = g.at[:, :3, :3].set(lie.so3_exp(angles[:, None] * axis[None]))
     quats = viz.attitude_quaternions(g)
     assert np.abs(np.diff(quats, axis=0)).max() < 0.04  # no sign jumps
     np.testing.assert_allclose(quats[-1], [1.0, 0.0, 0.0, 0.0], atol=1e-12)  # 4π: back to +1
@@ -179,7 +179,7 @@ def test_animation_gif(spin, tmp_path):
 def _turning(axis, angles):
     """Poses turning about a fixed unit `axis` by `angles`, from a tilted start."""
     start = lie.so3_exp(jnp.array([0.3, -0.2, 0.5]))
-    R = lie.so3_exp(jnp.asarray(angles)[:, None] * jnp.asarray(axis)) @ start
+    R = lie.so3_exp(jnp.asarray(angles)[:, None] * jnp.asarray(axis)[None]) @ start
     return jnp.zeros((len(angles), 4, 4)).at[:, :3, :3].set(R).at[:, 3, 3].set(1.0)
 
 

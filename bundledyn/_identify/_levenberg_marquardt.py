@@ -67,7 +67,7 @@ class _Factorization(NamedTuple):
 def _factorization(r, J, c, C, units):
     r"""$A = [J; C]\,\mathrm{diag}(u)$ and $b = [r; c]$ factorized for `_step`, through the
     triangle of $[A \mid b]$ (module docstring)."""
-    A, b = jnp.concatenate([J, C]) * units, jnp.concatenate([r, c])
+    A, b = jnp.concatenate([J, C]) * units[None, :], jnp.concatenate([r, c])
     n = A.shape[1]
     Ab = jnp.concatenate([A, b[:, None]], axis=1)
     # Zero rows, where there are fewer residuals than variables, keep R square.
@@ -84,7 +84,7 @@ def _step(factorization: _Factorization, damping, units, resolution):
     singular, right, projected, _ = factorization
     resolved = singular * resolution > 1.0
     gain = jnp.where(resolved, singular / (singular**2 + damping), 0.0)
-    y = -(right.T * gain) @ projected
+    y = -(right.T * gain[None, :]) @ projected
     # b·b - |b + Ay|² with b = W Wᵀb + b⊥ and Ay in the range of W.
     model = projected + singular * (right @ y)
     return units * y, 0.5 * (projected @ projected - model @ model)

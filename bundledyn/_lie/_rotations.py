@@ -140,10 +140,11 @@ def rotation_from_axis_angle(e, chi):
     """
     e = _float(e)
     chi = jnp.asarray(chi, dtype=e.dtype)
+    batch = jnp.broadcast_shapes(e.shape[:-1], chi.shape)
+    e, chi = jnp.broadcast_to(e, batch + (3,)), jnp.broadcast_to(chi, batch)
     E = so3_hat(e)
     s = jnp.sin(chi)[..., None, None]
     vc = (1.0 - jnp.cos(chi))[..., None, None]
-    batch = jnp.broadcast_shapes(e.shape[:-1], chi.shape)
     return _eye(batch, e.dtype) + vc * (E @ E) + s * E
 
 
@@ -394,7 +395,7 @@ def euler_parameters_from_rotation(R):
 
 def _unit_vector_frame(e3, a):
     e3 = _float(e3)
-    a = jnp.asarray(a, dtype=e3.dtype)
+    e3, a = jnp.broadcast_arrays(e3, jnp.asarray(a, dtype=e3.dtype))
     axe = jnp.cross(a, e3)
     p = axe / jnp.sqrt(_sq(axe))[..., None]
     return e3, a, axe, p

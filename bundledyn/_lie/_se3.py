@@ -403,8 +403,7 @@ def bracket(x, y):
 
     Shape `(..., 6)` (or `(..., 3)`).
     """
-    x = jnp.asarray(x)
-    y = jnp.asarray(y)
+    x, y = jnp.broadcast_arrays(jnp.asarray(x), jnp.asarray(y))
     if x.shape[-1] == 3:
         return jnp.cross(x, y)
     wx, vx = x[..., :3], x[..., 3:]
@@ -423,8 +422,7 @@ def klein(x, y):
 
     Shape `(...)`.
     """
-    x = jnp.asarray(x)
-    y = jnp.asarray(y)
+    x, y = jnp.broadcast_arrays(jnp.asarray(x), jnp.asarray(y))
     return jnp.sum(x[..., :3] * y[..., 3:], axis=-1) + jnp.sum(y[..., :3] * x[..., 3:], axis=-1)
 
 

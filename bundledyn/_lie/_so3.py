@@ -240,11 +240,22 @@ def so3_dexp_derivative(w):
     x = _sq(w)
     b, c, db, dc = (k[..., None, None, None] for k in _coefficients(x, "bcef"))
     e = jnp.eye(3, dtype=w.dtype)
+
+    def batched(a):  # a constant of the formula, with the rotations' leading dimensions
+        return jnp.broadcast_to(a, w.shape[:-1] + a.shape)
+
     wl = w[..., :, None, None]
-    outer = w[..., None, :, None] * e[:, None, :] + e[:, :, None] * w[..., None, None, :]
+    outer = (
+        w[..., None, :, None] * batched(e[:, None, :])
+        + batched(e[:, :, None]) * w[..., None, None, :]
+    )
     hat_w = so3_hat(w)[..., None, :, :]
-    hat_w2 = (w[..., :, None] * w[..., None, :] - x[..., None, None] * e)[..., None, :, :]
-    return -b * so3_hat(e) + c * (outer - 2.0 * wl * e) + 2.0 * wl * (-db * hat_w + dc * hat_w2)
+    hat_w2 = (w[..., :, None] * w[..., None, :] - x[..., None, None] * batched(e))[..., None, :, :]
+    return (
+        -b * batched(so3_hat(e))
+        + c * (outer - 2.0 * wl * batched(e)[..., None, :, :])
+        + 2.0 * wl * (-db * hat_w + dc * hat_w2)
+    )
 
 
 def so3_dexp_second_derivative_along(w, u, v):
@@ -274,6 +285,11 @@ def so3_dexp_second_derivative_along(w, u, v):
     w, u, v = _float(w), _float(u), _float(v)
     x = _sq(w)[..., None, None]  # before broadcasting: the coefficients once per rotation
     c, db, dc, ddb, ddc = _coefficients(x, "cefgh")
+    shape = jnp.broadcast_shapes(w.shape, u.shape, v.shape)
+    w, u, v = (jnp.broadcast_to(a, shape) for a in (w, u, v))
+    x, c, db, dc, ddb, ddc = (
+        jnp.broadcast_to(k, shape[:-1] + (1, 1)) for k in (x, c, db, dc, ddb, ddc)
+    )
 
     def dot(a, b):
         return jnp.sum(a * b, axis=-1)[..., None, None]
@@ -291,7 +307,7 @@ def so3_dexp_second_derivative_along(w, u, v):
     along_u = c * v_l + 2.0 * dc * w_l * wv
     along_v = -2.0 * (c + dc * x) * u_l - 4.0 * (2.0 * dc + ddc * x) * uw * w_l
     along_w_cross_v = -2.0 * db * u_l - 4.0 * ddb * uw * w_l
-    e = jnp.eye(3, dtype=w.dtype)
+    e = _eye_like(w)
     return (
         along_w * row(w)
         + along_u * row(u)

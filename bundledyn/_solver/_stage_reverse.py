@@ -52,6 +52,11 @@ def combine(w, stack):
     return out if w.ndim == 1 else jnp.moveaxis(out, -1, 0)
 
 
+def _outer(x, w):
+    """`x[..., None] * w`: each entry of `x` times the weights `w` (s,), stacked last."""
+    return x[..., None] * jnp.expand_dims(w, tuple(range(x.ndim)))
+
+
 def stages(field, a, g0, rest0, treedef, ts, control, n):
     r"""The first `n` stages of the tableau with matrix `a`, from $y_0 = (g_0, x_0)$.
 
@@ -197,8 +202,8 @@ def stages_with_reverse_pass(field, a, g0, rest0, treedef, ts, control, n):
             gi_bar, *xi_bar = jtu.tree_leaves(y_bar)
             omega_bar = omega_bar + dot(dexps[i].T, _hat_dual(dot(gi.T, gi_bar)))
             carry = (
-                kappas_bar + omega_bar[:, None] * a[i],
-                [kb + xb[..., None] * a[i] for kb, xb in zip(ks_bar, xi_bar, strict=True)],
+                kappas_bar + _outer(omega_bar, a[i]),
+                [kb + _outer(xb, a[i]) for kb, xb in zip(ks_bar, xi_bar, strict=True)],
                 g0_bar + dot(gi_bar, exps[i].T),
                 [r + xb for r, xb in zip(rest0_bar, xi_bar, strict=True)],
                 jtu.tree_map(jnp.add, varied_bar, v_bar),

@@ -55,7 +55,8 @@ def _divided_differences_of_exp(lam: Float[Array, " 3"], order: int):
     """
     n = order + 1
     multisets = list(itertools.combinations_with_replacement(range(3), n))
-    B = jax.vmap(jnp.diag)(lam[np.array(multisets)]) + jnp.eye(n, k=1, dtype=lam.dtype)
+    diagonals = jax.vmap(jnp.diag)(lam[np.array(multisets)])
+    B = diagonals + jnp.broadcast_to(jnp.eye(n, k=1, dtype=lam.dtype), diagonals.shape)
     first_row = jax.vmap(expm)(B)[:, 0]  # [m, r] = e^{[x_0..x_r]}, x the multiset m
     row = {m: i for i, m in enumerate(multisets)}
 
@@ -114,7 +115,7 @@ def stretch_derivatives(q: Float[Array, " 6"]):
     """
     lam, V, E = _eigen_frame(q)
     D1, D2 = _divided_differences_of_exp(lam, 2)
-    U = (V * jnp.exp(lam)) @ V.T
+    U = (V * jnp.exp(lam)[None, :]) @ V.T
     return U, _daleckii_krein(V, E, D1), _daleckii_krein(V, E, D2)
 
 

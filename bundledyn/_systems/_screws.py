@@ -33,7 +33,7 @@ def unit_screw_exp(S, theta):
     w_hat = lie.hat(S[..., :3])
     w_hat2 = matmul(w_hat, w_hat)
     s, c = jnp.sin(theta)[..., None, None], (1.0 - jnp.cos(theta))[..., None, None]
-    eye = jnp.eye(3, dtype=S.dtype)
+    eye = jnp.broadcast_to(jnp.eye(3, dtype=S.dtype), w_hat.shape)
     R = eye + s * w_hat + c * w_hat2
     V = theta[..., None, None] * eye + c * w_hat + (theta[..., None, None] - s) * w_hat2
     return pose(R, matmul(V, S[..., 3:, None])[..., 0])

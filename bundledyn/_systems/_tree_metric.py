@@ -68,8 +68,9 @@ class BallColumnDerivative(eqx.Module):
     def _in_base(self, axes):
         r"""Rotations about each joint's centre as base-frame twists: `axes` `(r, k, l, 3)`
         in the joints' frames, returned `(r, k, l, 6)`."""
-        w = sum(self.rotations[:, None, :, j] * axes[..., j, None] for j in range(3))
-        return jnp.concatenate([w, jnp.cross(self.centres[:, None, :], w)], axis=-1)
+        w = sum(self.rotations[None, :, None, :, j] * axes[..., j, None] for j in range(3))
+        centres = jnp.broadcast_to(self.centres[None, :, None, :], axes.shape)
+        return jnp.concatenate([w, jnp.cross(centres, w)], axis=-1)
 
     def along(self, u):
         r"""$\sum_m u_m\,\partial Z_j/\partial q_m$, shape `(6, d)`."""
@@ -150,7 +151,7 @@ class TreeMetricJet(AbstractMetricJet):
         the joints at or above it `(d, 6)`, the columns' derivative $\partial_u Z_j =
         [W_j, Z_j]$ (plus a ball joint's $\operatorname{dexp}$ term) `(6, d)`, and each
         body's twist $W_a$ `(n, 6)`."""
-        Zu = self.Z * u
+        Zu = self.Z * u[None, :]
         # Row j of `joints_at_or_above` (`at_or_above` transposed) marks the joints at or
         # above j. As its own constant XLA lays it out for this product alone; sharing
         # `composite_metric`'s table cost a copy into the other layout on every call.
