@@ -1,0 +1,3 @@
+from benchmarks.operations.cli import main
+
+raise SystemExit(main())
