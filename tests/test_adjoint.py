@@ -247,7 +247,12 @@ def test_past_its_memory_budget_the_adjoint_falls_back_to_checkpointing():
 
 @pytest.mark.parametrize(
     "case, options, adjoint",
-    [("rigid", "RKMK87 ts", STORED), ("chain", "RKMK87 event", REFILLED)],
+    [
+        ("rigid", "RKMK87 ts", STORED),
+        # The chain's two checkpointed gradients, batched: a minute's compiling, so slow;
+        # refilled blocks are checked everyday by the evaluation counts below.
+        pytest.param("chain", "RKMK87 event", REFILLED, marks=pytest.mark.slow),
+    ],
     ids=["rigid", "chain, event, refilled"],
 )
 def test_batched_gradients_of_members_taking_different_steps(case, options, adjoint):

@@ -11,6 +11,10 @@ import subprocess
 import sys
 
 import numpy as np
+import pytest
+
+# A child process that starts JAX on two devices and compiles a fit's windows twice.
+pytestmark = pytest.mark.slow
 
 SCRIPT = """
 import json

@@ -17,6 +17,7 @@ def quick_battery():
     return bd.stress.battery(quick=True)
 
 
+@pytest.mark.slow  # every case of the battery, solves and gradients: minutes
 def test_every_case_meets_its_bound():
     report = quick_battery()
     assert report.passed, str(report)
