@@ -45,7 +45,8 @@ def _polar_factor_jvp(primals, tangents):
     K = Pt @ dA
     trace = jnp.trace(H, axis1=-2, axis2=-1)[..., None, None]
     omega = jnp.linalg.solve(
-        trace * jnp.eye(3, dtype=H.dtype) - (H + jnp.swapaxes(H, -1, -2)) / 2,
+        trace * jnp.broadcast_to(jnp.eye(3, dtype=H.dtype), H.shape)
+        - (H + jnp.swapaxes(H, -1, -2)) / 2,
         lie.so3_vee(K - jnp.swapaxes(K, -1, -2))[..., None],
     )
     return P, P @ lie.so3_hat(omega[..., 0])
@@ -75,7 +76,8 @@ def project_to_se3(g):
 
 def _orthogonality_error(g):
     R = g[..., :3, :3]
-    return jnp.max(jnp.abs(jnp.swapaxes(R, -1, -2) @ R - jnp.eye(3)))
+    identity = jnp.broadcast_to(jnp.eye(3, dtype=R.dtype), R.shape)
+    return jnp.max(jnp.abs(jnp.swapaxes(R, -1, -2) @ R - identity))
 
 
 def _interpolates(saveat: diffrax.SaveAt, event) -> bool:
@@ -263,7 +265,9 @@ def simulate(
         stats["embedding_drift"] = _orthogonality_error(g)
         g = project_to_se3(g)
     states, U = jax.vmap(term.decode_with_locked_velocity)(sol.ts, (g, x))
-    return Trajectory(sol.ts, g, states.q, states.xi, states.qdot, U, stats, sol.result, scene)
+    return Trajectory(
+        sol.ts, states.g, states.q, states.xi, states.qdot, U, stats, sol.result, scene
+    )
 
 
 _solve = eqx.filter_jit(simulate)

@@ -88,7 +88,8 @@ class Trajectory(eqx.Module):
     def orthogonality_error(self) -> Float[Array, " n"]:
         r"""$\max_{ij}|R^TR - 1|$ of the section frame's rotation at every saved time."""
         R = self.g[:, :3, :3]
-        return jnp.max(jnp.abs(jnp.swapaxes(R, -1, -2) @ R - jnp.eye(3)), axis=(-1, -2))
+        identity = jnp.broadcast_to(jnp.eye(3, dtype=R.dtype), R.shape)
+        return jnp.max(jnp.abs(jnp.swapaxes(R, -1, -2) @ R - identity), axis=(-1, -2))
 
     @eqx.filter_jit
     def diagnostics(self) -> Diagnostics:

@@ -87,7 +87,7 @@ def theta_information(J, C, num_parameters: int):
     T_null = null_space(T)
     Q, R = jnp.linalg.qr(A @ T_null)
     rank = jnp.abs(jnp.diagonal(R)) > 1e-12 * jnp.max(jnp.abs(jnp.diagonal(R)))
-    Q = Q * rank
+    Q = Q * rank.astype(Q.dtype)[None, :]
     projected = B - Q @ (Q.T @ B)
     return projected.T @ projected
 

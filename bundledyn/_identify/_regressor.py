@@ -198,7 +198,7 @@ def _floating_equations(linear: _Linear, gauge: AbstractGauge, pi0, states, ts, 
     def weighted(unknowns):
         pi, mu_bar, energy_bar = unknowns[:-7], unknowns[-7:-1], unknowns[-1]
         momentum, energy, rate, power = balances(pi)
-        momentum_error = momentum - _cumulative_trapezoid(ts, rate) - mu_bar
+        momentum_error = momentum - _cumulative_trapezoid(ts, rate) - mu_bar[None, :]
         energy_error = energy - _cumulative_trapezoid(ts, power[:, None])[:, 0] - energy_bar
         return jnp.concatenate(
             [
@@ -251,7 +251,7 @@ def _solve(linear: _Linear, gauge: AbstractGauge, pi0, states, ts, accelerations
     norms = jnp.linalg.norm(E, axis=0)
     scale = jnp.maximum(norms, 1e-8 * jnp.max(norms))  # columns the balances barely see stay put
     weight = _RIDGE[bool(linear.extra_effects)]
-    ridge = weight * (jnp.arange(unknowns0.shape[0]) < pi0.shape[0])
-    A = jnp.concatenate([E / scale, jnp.diag(ridge)])
+    ridge = weight * (jnp.arange(unknowns0.shape[0]) < pi0.shape[0]).astype(unknowns0.dtype)
+    A = jnp.concatenate([E / scale[None, :], jnp.diag(ridge)])
     step = jnp.linalg.lstsq(A, jnp.concatenate([-e0, jnp.zeros_like(ridge)]))[0] / scale
     return (unknowns0 + step)[: pi0.shape[0]]

@@ -167,7 +167,7 @@ class ShootingProblem(eqx.Module):
             parts.append((states.q - m.q[k_index]) / noise.q)
         if m.xi is not None:
             scale = jnp.array([noise.angular_velocity] * 3 + [noise.linear_velocity] * 3)
-            parts.append((states.xi - m.xi[k_index]) / scale)
+            parts.append((states.xi - m.xi[k_index]) / scale[None, :])
         if m.qdot is not None:
             parts.append((states.qdot - m.qdot[k_index]) / noise.qdot)
         if m.body_poses is not None:
