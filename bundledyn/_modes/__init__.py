@@ -4,7 +4,7 @@ The built-in modes are chosen from `Scene`'s `shape` and `base` arguments by the
 registered in `SELECTIONS`: a new built-in mode is one file here and one line there.
 """
 
-from ._base import AbstractMode, SceneParts, frame_shift
+from ._base import AbstractFreeMotionMode, AbstractMode, SceneParts, frame_shift
 from ._charts import AbstractWindowChart, ChannelScales, DrivenChart, FloatingChart
 from ._floating import floating_field, galilean_kinematics
 from ._free_shape import FreeShapeMode, select as _select_free_shape
@@ -12,8 +12,10 @@ from ._motions import FloatingBase, Free, Prescribed, PrescribedBase
 from ._prescribed_base import PrescribedBaseMode, select as _select_prescribed_base
 from ._prescribed_shape import PrescribedShapeMode, select as _select_prescribed_shape
 from ._rigid_body import RigidBodyMode, select as _select_rigid_body
+from ._rolling import RollingMode
 
 __all__ = [
+    "AbstractFreeMotionMode",
     "AbstractMode",
     "AbstractWindowChart",
     "ChannelScales",
@@ -27,6 +29,7 @@ __all__ = [
     "PrescribedBaseMode",
     "PrescribedShapeMode",
     "RigidBodyMode",
+    "RollingMode",
     "SELECTIONS",
     "SceneParts",
     "floating_field",

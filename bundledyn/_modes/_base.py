@@ -22,7 +22,7 @@ from .._systems._base import AbstractSystem
 from ._charts import AbstractWindowChart
 from ._motions import FloatingBase, Free, Prescribed, PrescribedBase
 
-__all__ = ["AbstractMode", "SceneParts", "frame_shift"]
+__all__ = ["AbstractFreeMotionMode", "AbstractMode", "SceneParts", "frame_shift"]
 
 
 class SceneParts(Protocol):
@@ -114,3 +114,15 @@ class AbstractMode(eqx.Module):
     @abc.abstractmethod
     def window_chart(self, scene: SceneParts) -> AbstractWindowChart:
         """The coordinates of an identification window's initial state."""
+
+
+class AbstractFreeMotionMode(AbstractMode):
+    """A mode whose shape and base the user does not prescribe: `Free()` and `FloatingBase()`."""
+
+    @property
+    def shape(self):
+        return Free()
+
+    @property
+    def base(self):
+        return FloatingBase()

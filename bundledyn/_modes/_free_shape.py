@@ -5,7 +5,7 @@ import jax.numpy as jnp
 from .._geometry import locked_velocity
 from .._state import State
 from .._systems._ball_chart import ball_columns, recharted_shape
-from ._base import AbstractMode, SceneParts
+from ._base import AbstractFreeMotionMode, SceneParts
 from ._charts import FloatingChart
 from ._floating import body_twist, checked_shape, floating_field, galilean_kinematics
 from ._motions import FloatingBase, Free
@@ -13,17 +13,9 @@ from ._motions import FloatingBase, Free
 __all__ = ["FreeShapeMode", "select"]
 
 
-class FreeShapeMode(AbstractMode):
+class FreeShapeMode(AbstractFreeMotionMode):
     r"""A floating base and a free shape ($d > 0$): $x = [q, U, \dot q]$, and the field is
     $(\dot q, \dot U, \ddot q)$ of (2.6)–(2.7)."""
-
-    @property
-    def shape(self):
-        return Free()
-
-    @property
-    def base(self):
-        return FloatingBase()
 
     def check(self, system, frame):
         if system.shape_dim == 0:

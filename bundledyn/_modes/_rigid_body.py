@@ -1,7 +1,7 @@
 r"""A single rigid body ($d = 0$) on a floating base: only (2.7) is integrated."""
 
 from .._state import State
-from ._base import AbstractMode, SceneParts
+from ._base import AbstractFreeMotionMode, SceneParts
 from ._charts import FloatingChart
 from ._floating import checked_shape, galilean_kinematics, locked_field
 from ._motions import FloatingBase, Free
@@ -9,16 +9,8 @@ from ._motions import FloatingBase, Free
 __all__ = ["RigidBodyMode", "select"]
 
 
-class RigidBodyMode(AbstractMode):
+class RigidBodyMode(AbstractFreeMotionMode):
     r"""A system without shape coordinates: $x = U = \xi$, and the field is $\dot U$ of (2.7)."""
-
-    @property
-    def shape(self):
-        return Free()
-
-    @property
-    def base(self):
-        return FloatingBase()
 
     def check(self, system, frame):
         if system.shape_dim != 0:

@@ -4,7 +4,8 @@ A system given by its kinetic energy $T(q, \dot q, t)$, its active forces and ki
 constraints, either as Pfaffian rows (76) or in the parametric form (77); Maggi's equations
 (82) and Appell's (§60) assembled by autodiff and solved for the rates of the kinematic
 characteristics; the split of Maggi's equations into nonholonomic and holonomic terms
-((84)–(93)); a diffrax term on $(q, e)$; the Chaplygin sleigh and the vertical rolling disc.
+((84)–(93)); a diffrax term on $(q, e)$; the Chaplygin sleigh and the vertical rolling disc; the surfaces a rigid body rolls on a plane
+with (`RollingMode`).
 """
 
 from ._appell import acceleration_energy, appell_accelerations
@@ -14,8 +15,17 @@ from ._constraints import (
     constrained_velocities,
     kinematic_characteristics,
 )
+from ._contact import (
+    AbstractContactSurface,
+    DiscContact,
+    EllipsoidContact,
+    SphereContact,
+    TorusContact,
+    contact_twist,
+)
 from ._covariants import bilinear_covariants
 from ._equations import AbstractNonholonomicEquations, AppellEquations, MaggiEquations
+from ._linearize import linearization
 from ._maggi import (
     characteristic_forces,
     lagrange_binomials,
@@ -31,26 +41,33 @@ from ._system import AbstractNonholonomicSystem, NonholonomicSystem, mechanical_
 from ._term import NonholonomicTerm
 
 __all__ = [
+    "AbstractContactSurface",
     "AbstractKinematicConstraints",
     "AbstractNonholonomicEquations",
     "AbstractNonholonomicSystem",
     "AppellEquations",
     "ChaplyginSleigh",
+    "DiscContact",
+    "EllipsoidContact",
     "MaggiEquations",
     "NonholonomicSystem",
     "NonholonomicTerm",
     "ParametricConstraints",
     "PfaffianConstraints",
     "RollingDisc",
+    "SphereContact",
+    "TorusContact",
     "acceleration_energy",
     "appell_accelerations",
     "bilinear_covariants",
     "characteristic_forces",
     "constrained_accelerations",
     "constrained_velocities",
+    "contact_twist",
     "holonomic_terms",
     "kinematic_characteristics",
     "lagrange_binomials",
+    "linearization",
     "maggi_accelerations",
     "maggi_equations",
     "mechanical_energy",

@@ -1,0 +1,323 @@
+"""Rigid bodies rolling without slipping on a plane (`RollingMode`, seed 001 (77), (82) on SE(3)),
+against closed forms, conserved quantities and an independent derivation: the tilting disc in
+Euler angles, a `NonholonomicSystem` with its contact rows by autodiff."""
+
+import functools
+
+import diffrax
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+from systems import chain
+
+import bundledyn as bd
+
+GRAVITY = 9.81
+
+
+def _rolling_scene(inertia, surface, *, mass=1.5, effects=None, **plane):
+    body = bd.RigidBody(mass, jnp.zeros(3), inertia)
+    effects = [bd.Gravity(GRAVITY)] if effects is None else effects
+    return bd.Scene(body, effects, mode=bd.RollingMode(surface, **plane))
+
+
+def _simulate(scene, state, t1, ts=None, **options):
+    saveat = diffrax.SaveAt(ts=ts) if ts is not None else None
+    return bd.simulate(scene, state, t1, rtol=1e-12, atol=1e-12, saveat=saveat, **options)
+
+
+# --- a ball: closed forms ---------------------------------------------------------------
+
+BALL_MASS, BALL_RADIUS = 2.0, 0.1
+BALL_INERTIA = 0.4 * BALL_MASS * BALL_RADIUS**2 * jnp.eye(3)
+
+
+def test_a_homogeneous_ball_rolls_straight_with_constant_angular_velocity():
+    # On a level plane a solid ball's angular velocity is constant and its centre moves as
+    # omega x (r n): a straight line at constant speed.
+    scene = _rolling_scene(BALL_INERTIA, bd.SphereContact(BALL_RADIUS), mass=BALL_MASS)
+    g0 = bd.lie.se3_exp(jnp.array([0.4, -0.3, 1.1, 0.2, 0.5, 7.0]))  # the height is replaced
+    omega = jnp.array([1.0, 2.0, 0.5])
+    state = scene.mode.state(g0, omega)
+    assert float(state.g[2, 3]) == pytest.approx(BALL_RADIUS, abs=1e-15)
+    ts = jnp.linspace(0.0, 2.0, 5)
+    traj = _simulate(scene, state, 2.0, ts)
+    omega_world = jnp.einsum("tij,tj->ti", traj.g[:, :3, :3], traj.xi[:, :3])
+    np.testing.assert_allclose(
+        omega_world, jnp.broadcast_to(g0[:3, :3] @ omega, (5, 3)), atol=1e-10
+    )
+    velocity = jnp.cross(g0[:3, :3] @ omega, jnp.array([0.0, 0.0, BALL_RADIUS]))
+    expected = state.g[None, :3, 3] + ts[:, None] * velocity[None, :]
+    np.testing.assert_allclose(traj.g[:, :3, 3], expected, atol=1e-10)
+
+
+def test_a_ball_rolls_down_an_incline_at_five_sevenths_of_the_free_acceleration():
+    # A solid ball from rest on a slope of angle alpha: s = (5/7) g sin(alpha) t^2 / 2.
+    alpha = 0.3
+    normal = jnp.array([jnp.sin(alpha), 0.0, jnp.cos(alpha)])
+    scene = _rolling_scene(
+        BALL_INERTIA, bd.SphereContact(BALL_RADIUS), mass=BALL_MASS, normal=normal, offset=0.2
+    )
+    state = scene.mode.state(jnp.eye(4), jnp.zeros(3))
+    ts = jnp.linspace(0.0, 1.5, 4)
+    traj = _simulate(scene, state, 1.5, ts)
+    downhill = jnp.array([jnp.cos(alpha), 0.0, -jnp.sin(alpha)])
+    travelled = (traj.g[:, :3, 3] - state.g[None, :3, 3]) @ downhill
+    expected = 5.0 / 7.0 * GRAVITY * np.sin(alpha) * ts**2 / 2
+    np.testing.assert_allclose(travelled, expected, rtol=0, atol=1e-10)
+    # the centre stays at one radius from the plane
+    heights = traj.g[:, :3, 3] @ normal - 0.2
+    np.testing.assert_allclose(heights, BALL_RADIUS, rtol=0, atol=1e-13)
+
+
+def _contact_momentum(mode, mass, inertia, g, xi):
+    r"""The angular momentum about the contact point in space, $R(I\omega - m\,c\times(c\times
+    \omega))$ for a body whose centre of mass is its frame's origin."""
+    c, omega = mode.contact(g[:3, :3]), xi[:3]
+    return g[:3, :3] @ (inertia @ omega - mass * jnp.cross(c, jnp.cross(c, omega)))
+
+
+def test_the_chaplygin_sphere_keeps_its_four_invariants():
+    # A ball with its centre of mass at its centre and three unequal moments: the energy and
+    # the angular momentum about the contact point, a constant vector in space (the
+    # reaction and gravity pass through the contact point's vertical).
+    inertia = jnp.diag(jnp.array([0.010, 0.014, 0.020]))
+    scene = _rolling_scene(inertia, bd.SphereContact(0.1), mass=1.0)
+    g0 = bd.lie.se3_exp(jnp.array([0.3, -0.2, 0.5, 0.0, 0.0, 0.0]))
+    state = scene.mode.state(g0, jnp.array([1.0, -2.0, 3.0]))
+    traj = _simulate(scene, state, 3.0, jnp.linspace(0.0, 3.0, 31))
+    momentum = jax.vmap(lambda g, xi: _contact_momentum(scene.mode, 1.0, inertia, g, xi))(
+        traj.g, traj.xi
+    )
+    scale = float(jnp.linalg.norm(momentum[0]))
+    np.testing.assert_allclose(
+        momentum, jnp.broadcast_to(momentum[0], momentum.shape), atol=1e-10 * scale
+    )
+    energy = np.asarray(traj.energy())
+    np.testing.assert_allclose(energy, energy[0], rtol=1e-11)
+    # the motion is not trivial: the body axes of the spin wander
+    assert float(jnp.max(jnp.abs(traj.xi[:, :3] - traj.xi[None, 0, :3]))) > 0.5
+
+
+# --- the tilting disc: an independent derivation in Euler angles ---------------------------
+
+DISC_MASS, DISC_RADIUS = 1.5, 0.2
+# A uniform thin disc, its axle along the body's y axis.
+DIAMETRAL, AXIAL = DISC_MASS * DISC_RADIUS**2 / 4, DISC_MASS * DISC_RADIUS**2 / 2
+DISC_INERTIA = jnp.diag(jnp.array([DIAMETRAL, AXIAL, DIAMETRAL]))
+CRITICAL_SPIN = np.sqrt(
+    DISC_MASS * GRAVITY * DISC_RADIUS * DIAMETRAL / (AXIAL * (AXIAL + DISC_MASS * DISC_RADIUS**2))
+)
+
+
+def _axis_rotation(axis, angle):
+    return bd.lie.so3_exp(angle * jnp.eye(3, dtype=float)[axis])
+
+
+def _orientation(q):
+    """$R = R_z(\\varphi)R_x(\\theta)R_y(\\psi)$: heading, tilt from upright, spin about the axle."""
+    return _axis_rotation(2, q[2]) @ _axis_rotation(0, q[3]) @ _axis_rotation(1, q[4])
+
+
+def _body_angular_velocity(q, qdot):
+    R, R_dot = jax.jvp(_orientation, (q,), (qdot,))
+    return bd.lie.so3_vee(R.T @ R_dot)
+
+
+def _centre_velocity(q, qdot):
+    # the centre is at height a cos(theta) above the contact
+    return jnp.stack([qdot[0], qdot[1], -DISC_RADIUS * jnp.sin(q[3]) * qdot[3]])
+
+
+def _contact_velocity(q, qdot):
+    lowest = _axis_rotation(2, q[2]) @ jnp.stack([0.0 * q[3], -jnp.sin(q[3]), jnp.cos(q[3])])
+    omega = _orientation(q) @ _body_angular_velocity(q, qdot)
+    return _centre_velocity(q, qdot) + jnp.cross(omega, -DISC_RADIUS * lowest)
+
+
+def _disc_in_euler_angles():
+    """The disc in $q = (x, y, \\varphi, \\theta, \\psi)$ (centre's position, heading, tilt,
+    spin), its horizontal contact rows (76) the linear part of the contact point's
+    velocity, solved for $(\\dot x, \\dot y)$."""
+
+    def kinetic_energy(q, qdot, t):
+        v, omega = _centre_velocity(q, qdot), _body_angular_velocity(q, qdot)
+        return 0.5 * DISC_MASS * v @ v + 0.5 * omega @ DISC_INERTIA @ omega
+
+    def rows(q, t):
+        return jax.jacfwd(lambda qdot: _contact_velocity(q, qdot)[:2])(jnp.zeros_like(q))
+
+    return bd.NonholonomicSystem(
+        T=kinetic_energy,
+        constraints=bd.PfaffianConstraints(rows, independent=(2, 3, 4)),
+        Pi=lambda q, t: DISC_MASS * GRAVITY * DISC_RADIUS * jnp.cos(q[3]),
+    )
+
+
+def _disc_scene(surface=None):
+    return _rolling_scene(DISC_INERTIA, surface or bd.DiscContact(DISC_RADIUS), mass=DISC_MASS)
+
+
+def _disc_state(scene, q, e):
+    """The bundle's state of the Euler-angle state `(q, e)`."""
+    qdot = bd.constrained_velocities(_disc_in_euler_angles().constraints, q, e, 0.0)
+    g = jnp.eye(4).at[:3, :3].set(_orientation(q))
+    g = g.at[:3, 3].set(jnp.stack([q[0], q[1], DISC_RADIUS * jnp.cos(q[3])]))
+    return scene.mode.state(g, _body_angular_velocity(q, qdot))
+
+
+def test_the_rolling_disc_on_se3_moves_as_its_euler_angle_equations_move_it():
+    q0 = jnp.array([0.1, -0.2, 0.3, 0.25, 0.4])
+    e0 = jnp.array([0.7, -0.3, 5.0])  # heading, tilt and spin rates
+    scene = _disc_scene()
+    ts = jnp.linspace(0.0, 2.0, 11)
+    traj = _simulate(scene, _disc_state(scene, q0, e0), 2.0, ts)
+    reference = diffrax.diffeqsolve(
+        bd.NonholonomicTerm(_disc_in_euler_angles()), diffrax.Tsit5(), 0.0, 2.0, None, (q0, e0),
+        saveat=diffrax.SaveAt(ts=ts), max_steps=100_000,
+        stepsize_controller=diffrax.PIDController(rtol=1e-12, atol=1e-12),
+    )  # fmt: skip
+    q = reference.ys[0]
+    np.testing.assert_allclose(traj.g[:, :3, :3], jax.vmap(_orientation)(q), atol=1e-9)
+    np.testing.assert_allclose(traj.g[:, :2, 3], q[:, :2], atol=1e-9)
+    assert float(jnp.max(jnp.abs(q[:, 3] - q0[3]))) > 0.1  # it tilts and wobbles
+    energy = np.asarray(traj.energy())
+    np.testing.assert_allclose(energy, energy[0], rtol=1e-10)
+
+
+@jax.jit
+def _maggi_and_appell(q, e):
+    system = _disc_in_euler_angles()
+    return bd.maggi_accelerations(system, q, e, 0.0), bd.appell_accelerations(system, q, e, 0.0)
+
+
+def test_maggi_and_appell_agree_on_the_euler_angle_disc():
+    kq, ke = jax.random.split(jax.random.PRNGKey(0))
+    qs = jax.random.uniform(kq, (4, 5), minval=-1.0, maxval=1.0)
+    es = 3.0 * jax.random.normal(ke, (4, 3))
+    maggi, appell = jax.vmap(_maggi_and_appell)(qs, es)
+    scale = 1.0 + float(jnp.max(jnp.abs(maggi)))
+    np.testing.assert_allclose(maggi, appell, rtol=0, atol=1e-10 * scale)
+
+
+@functools.cache
+def _largest_growth_rates():
+    """The largest real part of the linearization's eigenvalues about upright rolling, at
+    spins `GROWTH_FACTORS` times the critical one (one compiled program)."""
+
+    def largest(spin):
+        term = bd.NonholonomicTerm(_disc_in_euler_angles())
+        upright = (jnp.zeros(5), jnp.stack([0.0 * spin, 0.0 * spin, spin]))
+        return bd.linearization(term, upright)
+
+    jacobians = jax.jit(jax.vmap(largest))(CRITICAL_SPIN * jnp.array(GROWTH_FACTORS))
+    rates = np.max(np.real(np.linalg.eigvals(np.asarray(jacobians))), axis=-1)
+    return dict(zip(GROWTH_FACTORS, rates, strict=True))
+
+
+BELOW, ABOVE = (0.999, 0.99, 0.5), (1.001, 1.01, 2.0)
+GROWTH_FACTORS = BELOW + ABOVE
+
+
+@pytest.mark.parametrize("factor", BELOW)
+def test_upright_rolling_is_unstable_below_the_critical_spin(factor):
+    # Omega_c^2 = m g a I_d / (I_a (I_a + m a^2)): a growth rate appears below it ...
+    assert _largest_growth_rates()[factor] > 0.1
+
+
+@pytest.mark.parametrize("factor", ABOVE)
+def test_upright_rolling_is_neutrally_stable_above_the_critical_spin(factor):
+    # ... and above it every eigenvalue is on the imaginary axis (a conservative system)
+    assert abs(_largest_growth_rates()[factor]) < 1e-10
+
+
+@pytest.mark.parametrize("factor, stays_up", [(0.8, False), (1.25, True)])
+def test_the_disc_on_se3_falls_below_the_critical_spin_and_rolls_on_above_it(factor, stays_up):
+    tilt = 1e-3
+    scene = _disc_scene()
+    state = _disc_state(
+        scene, jnp.array([0.0, 0.0, 0.0, tilt, 0.0]), jnp.array([0.0, 0.0, factor * CRITICAL_SPIN])
+    )
+    traj = _simulate(scene, state, 4.0, jnp.linspace(0.0, 4.0, 81))
+    axle_up = jnp.abs(traj.g[:, 2, 1])  # sin of the tilt
+    largest = float(jnp.max(axle_up))
+    assert (largest < 10 * tilt) if stays_up else (largest > 0.3)
+
+
+@pytest.mark.parametrize(
+    "surface",
+    [bd.EllipsoidContact(jnp.array([0.15, 0.2, 0.1])), bd.TorusContact(0.18, 0.03)],
+    ids=["ellipsoid", "torus"],
+)
+def test_energy_is_conserved_on_every_surface(surface):
+    # the rolling constraints are scleronomic and ideal: the reaction does no work
+    scene = _disc_scene(surface)
+    g0 = bd.lie.se3_exp(jnp.array([0.4, 0.3, -0.2, 0.0, 0.0, 0.0]))
+    traj = _simulate(
+        scene, scene.mode.state(g0, jnp.array([2.0, -4.0, 1.0])), 2.0, jnp.linspace(0, 2, 21)
+    )
+    energy = np.asarray(traj.energy())
+    np.testing.assert_allclose(energy, energy[0], rtol=1e-10)
+    # the surface touches the plane at every saved state, to rounding
+    np.testing.assert_allclose(jax.vmap(scene.mode.placed)(traj.g), traj.g, rtol=0, atol=1e-15)
+
+
+def test_a_disc_lying_flat_has_a_finite_contact_point_and_derivative():
+    surface = bd.DiscContact(DISC_RADIUS)
+    for n in (jnp.array([0.0, 1.0, 0.0]), jnp.array([0.0, -1.0, 0.0])):
+        point, tangent = jax.jvp(surface.contact_point, (n,), (jnp.array([0.3, 0.0, 0.1]),))
+        np.testing.assert_array_equal(point, jnp.zeros(3))
+        assert bool(jnp.all(jnp.isfinite(tangent)))
+        assert bool(jnp.all(jnp.isfinite(jax.jacrev(surface.contact_point)(n))))
+    # near flat, the contact point is on the rim
+    n = jnp.array([1e-3, 1.0, 0.0]) / jnp.sqrt(1 + 1e-6)
+    np.testing.assert_allclose(jnp.linalg.norm(surface.contact_point(n)), DISC_RADIUS, rtol=1e-14)
+
+
+def test_the_gradient_through_a_rolling_solve_equals_central_differences():
+    scene = _disc_scene()
+    q0 = jnp.array([0.0, 0.0, 0.0, 0.2, 0.0])
+
+    def final_x(spin):
+        state = _disc_state(scene, q0, jnp.array([0.5, 0.0, spin]))
+        return bd.simulate(scene, state, 0.5, rtol=1e-12, atol=1e-12).g[-1, 0, 3]
+
+    grad = jax.grad(final_x)(6.0)
+    h = 1e-4
+    differences = (final_x(6.0 + h) - final_x(6.0 - h)) / (2 * h)
+    np.testing.assert_allclose(grad, differences, rtol=1e-6)
+
+
+def test_a_state_off_the_rolling_constraints_is_refused():
+    scene = _disc_scene()
+    state = scene.mode.state(jnp.eye(4), jnp.array([0.0, 3.0, 0.0]))
+    slipping = bd.State(state.g, state.q, state.xi.at[3].add(0.1), state.qdot)
+    with pytest.raises(Exception, match="not rolling on the plane"):
+        bd.simulate(scene, slipping, 0.1)
+
+
+def test_rolling_scenes_refuse_what_they_cannot_integrate():
+    with pytest.raises(ValueError, match="rigid body"):
+        bd.Scene(chain(2), mode=bd.RollingMode(bd.SphereContact(0.1)))
+    with pytest.raises(ValueError, match="no `frame`"):
+        bd.Scene(
+            bd.RigidBody(1.0, jnp.zeros(3), jnp.eye(3)),
+            frame=bd.FreeFalling(9.81),
+            mode=bd.RollingMode(bd.SphereContact(0.1)),
+        )
+    with pytest.raises(ValueError, match="AbstractContactSurface"):
+        bd.RollingMode(0.1)
+    with pytest.raises(ValueError, match="positive"):
+        bd.SphereContact(-0.1)
+
+
+def test_the_layout_gives_back_the_state_it_encodes():
+    scene = _disc_scene(bd.EllipsoidContact(jnp.array([0.15, 0.2, 0.1])))
+    g0 = bd.lie.se3_exp(jnp.array([0.4, 0.3, -0.2, 1.0, -2.0, 0.0]))
+    state = scene.mode.state(g0, jnp.array([2.0, -4.0, 1.0]))
+    term = bd.SceneTerm(scene)
+    y = term.encode(0.0, state)
+    assert y[1].shape == (3,)  # the characteristics: the angular velocity alone
+    for a, b in zip(jax.tree.leaves(term.decode(0.0, y)), jax.tree.leaves(state), strict=True):
+        np.testing.assert_allclose(a, b, rtol=0, atol=1e-15)
