@@ -56,6 +56,12 @@ import bundledyn as bd  # noqa: E402
 # XLA reads its flags when the backend starts: before any test computes (see benchmarks/).
 bd.use_cpu_xla_flags()
 jax.config.update("jax_enable_x64", True)
+# Strict numerics: no implicit promotion between dtypes (an int64 array with a float64 one,
+# float32 with float64; Python scalars stay weakly typed) and no implicit broadcasting
+# between arrays of different ranks: a promotion or a broadcast is written out
+# (`x.astype(...)`, `x[:, None]`, `jnp.broadcast_to`), or the test fails.
+jax.config.update("jax_numpy_dtype_promotion", "strict")
+jax.config.update("jax_numpy_rank_promotion", "raise")
 
 
 @pytest.fixture(scope="module")
