@@ -201,6 +201,35 @@ def test_maggi_and_appell_agree_on_the_euler_angle_disc():
     np.testing.assert_allclose(maggi, appell, rtol=0, atol=1e-10 * scale)
 
 
+def _steady_spin(tilt, heading_rate):
+    r"""The spin rate $\dot\psi$ of a steady motion at tilt $\theta$ and heading rate
+    $\Omega$: with $\omega_2 = \dot\psi + \Omega\sin\theta$ the angular velocity along the
+    axle, the balance of angular momentum about the centre (its rate $\Omega e_z\times L$
+    against the contact force's moment) gives
+    $I_d\Omega^2\sin\theta\cos\theta - (I_a + ma^2)\Omega\omega_2\cos\theta - mga\sin\theta = 0$."""
+    m, a = DISC_MASS, DISC_RADIUS
+    s, c = np.sin(tilt), np.cos(tilt)
+    axle_rate = (DIAMETRAL * heading_rate**2 * s * c - m * GRAVITY * a * s) / (
+        (AXIAL + m * a**2) * heading_rate * c
+    )
+    return axle_rate - heading_rate * s
+
+
+@pytest.mark.parametrize("offset, steady", [(0.0, True), (1e-3, False)])
+def test_the_disc_precesses_steadily_where_its_algebraic_condition_holds(offset, steady):
+    # Rolling on a circle at a constant tilt: the tilt stays put to rounding at the spin the
+    # condition gives, and wobbles visibly 1e-3 rad/s away from it.
+    tilt, heading_rate = 0.3, 2.0
+    scene = _disc_scene()
+    spin = _steady_spin(tilt, heading_rate) + offset
+    state = _disc_state(
+        scene, jnp.array([0.0, 0.0, 0.0, tilt, 0.0]), jnp.array([heading_rate, 0.0, spin])
+    )
+    traj = _simulate(scene, state, 3.0, jnp.linspace(0.0, 3.0, 31))
+    wobble = float(jnp.max(jnp.abs(jnp.arcsin(traj.g[:, 2, 1]) - tilt)))
+    assert (wobble < 1e-10) if steady else (wobble > 1e-5)
+
+
 @functools.cache
 def _largest_growth_rates():
     """The largest real part of the linearization's eigenvalues about upright rolling, at
