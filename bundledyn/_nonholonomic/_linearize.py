@@ -17,9 +17,13 @@ def linearization(
     equilibrium or a steady motion.
 
     At a steady motion of a system with cyclic coordinates (those the field does not depend
-    on: a rolling disc's position, heading and spin angle) their columns are zero and add
-    zero eigenvalues; the others decide the stability: `jnp.linalg.eigvals(J)`. The
-    Jacobian is differentiable in the system's parameters, so are its eigenvalues.
+    on: a rolling disc's position, heading and spin angle) $J$ is block-triangular: the
+    rows and columns of the other variables form the reduced field's Jacobian, whose
+    eigenvalues decide the stability (`jnp.linalg.eigvals(J[np.ix_(kept, kept)])`). The
+    cyclic block only adds zero eigenvalues, defective ones (a heading moves the position),
+    which an eigenvalue solver returns only to about $\sqrt{\varepsilon}$: take the reduced
+    block. The Jacobian is differentiable in the system's parameters, so are its
+    eigenvalues.
 
     **Arguments:**
 
