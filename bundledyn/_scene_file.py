@@ -25,7 +25,8 @@ from ._effects import (
 )
 from ._frames import Boosted, FreeFalling
 from ._geometry import connection
-from ._modes import Prescribed
+from ._modes import Prescribed, RollingMode
+from ._nonholonomic import DiscContact, EllipsoidContact, SphereContact, TorusContact
 from ._paths import models
 from ._scene import Scene, model_effects
 from ._simulate import simulate
@@ -400,6 +401,44 @@ def _frame(t: _Table):
     return frame
 
 
+_SURFACES = {
+    "sphere": (SphereContact, ("radius",), ("centre",)),
+    "disc": (DiscContact, ("radius",), ("axis", "centre")),
+    "torus": (TorusContact, ("radius", "tube_radius"), ("axis", "centre")),
+    "ellipsoid": (EllipsoidContact, (), ("semi_axes", "centre")),
+}
+
+
+def _rolling(t: _Table) -> RollingMode:
+    """The `[rolling]` table: a contact surface rolling on a plane."""
+    kind = t.string("surface", choices=set(_SURFACES))
+    make, numbers, vectors = _SURFACES[kind]
+    required = ("semi_axes",) if kind == "ellipsoid" else ()
+    arguments = {key: t.number(key) for key in numbers}
+    for key in vectors:
+        if key in required or t.has(key):
+            arguments[key] = t.array(key, (3,))
+    normal = t.array("normal", (3,), (0.0, 0.0, 1.0))
+    offset = t.number("offset", 0.0)
+    with t.building("surface"):
+        mode = RollingMode(make(**arguments), normal=normal, offset=offset)
+    t.done()
+    return mode
+
+
+def _rolling_state(t: _Table, mode: RollingMode):
+    """`[initial]` of a rolling scene: the pose (placed on the plane) and `omega`."""
+    for key in ("q", "qdot", "xi"):
+        if t.has(key):
+            raise t.fail(key, "a rolling body has no shape, and its twist follows from `omega`.")
+    g = np.eye(4)
+    g[:3, :3] = np.asarray(lie.so3_exp(jnp.asarray(t.array("rotation", (3,), (0.0, 0.0, 0.0)))))
+    g[:3, 3] = t.array("position", (3,), (0.0, 0.0, 0.0))
+    omega = t.array("omega", (3,), (0.0, 0.0, 0.0))
+    t.done()
+    return mode.state(g, omega)
+
+
 def _state(t: _Table, system, shape, t0):
     d = system.shape_dim
     g = np.eye(4)
@@ -444,6 +483,12 @@ class SceneFile:
       `"shape_spring"` (`stiffness`, `rest`) or `"shape_damper"` (`damping`).
     - `[shape]` `mode` = `"free"` (default) or `"prescribed"`:
       $q(t) = o + a\sin(2\pi f t + \varphi)$ from `offset`, `amplitude`, `frequency`, `phase`.
+    - `[rolling]`: the rigid body rolls without slipping on a plane (`RollingMode`):
+      `surface` = `"sphere"` (`radius`, `centre`), `"disc"` (`radius`, `axis`, `centre`),
+      `"torus"` (`radius`, `tube_radius`, `axis`, `centre`) or `"ellipsoid"` (`semi_axes`,
+      `centre`); the plane's `normal` (default up) and `offset`. Its `[initial]` takes
+      `position`, `rotation` and the body angular velocity `omega` (the body is placed on
+      the plane, its twist the rolling one); not with `[shape]`.
     - `[frame]` `type` = `"galilean"` (default), `"boosted"` (`velocity`) or
       `"free_falling"` (`g`, `direction`).
     - `[initial]` `position`, `rotation` (rotation vector), `q`, `qdot`, and `xi` (6 numbers,
@@ -494,8 +539,9 @@ class SceneFile:
         shape = _prescribed(shape_table, d) if mode == "prescribed" else None
         shape_table.done()
         frame = _frame(root.table("frame", {}))
+        rolling = _rolling(root.table("rolling")) if root.has("rolling") else None
         with root.building("scene"):
-            scene = Scene(system, effects, shape, frame)
+            scene = Scene(system, effects, shape, frame, mode=rolling)
 
         time = root.table("time")
         t0, t1 = time.number("t0", 0.0), time.number("t1")
@@ -505,7 +551,12 @@ class SceneFile:
         if saves < 2 or saves != int(saves):
             raise time.fail("saves", "must be a whole number ≥ 2.")
         time.done()
-        state = _state(root.table("initial", {}), system, shape, t0)
+        initial = root.table("initial", {})
+        state = (
+            _state(initial, system, shape, t0)
+            if rolling is None
+            else _rolling_state(initial, rolling)
+        )
 
         solver_table = root.table("solver", {})
         method = solver_table.string("method", "RKMK87", set(SOLVERS))

@@ -256,3 +256,34 @@ def test_mistakes_name_file_field_and_value(tmp_path, mistake):
 def test_missing_scene_file(tmp_path):
     with pytest.raises(bd.SceneFileError, match="cannot read the file"):
         bd.SceneFile.load(tmp_path / "nowhere.toml")
+
+
+def test_shipped_rolling_disc_rolls_and_touches_the_plane():
+    sf = bd.SceneFile.load(bd.scenes / "rolling_disc.toml")
+    mode = sf.scene.mode
+    assert isinstance(mode, bd.RollingMode) and isinstance(mode.surface, bd.DiscContact)
+    np.testing.assert_allclose(mode.surface.radius, 0.2)
+    # placed on the plane, with the rolling twist (omega, c x omega)
+    g, omega = sf.state.g, sf.state.xi[:3]
+    c = mode.contact(g[:3, :3])
+    np.testing.assert_allclose((g[:3, :3] @ c + g[:3, 3])[2], 0.0, atol=1e-15)
+    np.testing.assert_allclose(sf.state.xi[3:], jnp.cross(c, omega), atol=1e-15)
+    np.testing.assert_allclose(omega, [0.0, 6.0, 0.7])
+
+
+@pytest.mark.parametrize(
+    "table, message",
+    [
+        ('[rolling]\nsurface = "cone"\n', "must be one of"),
+        ('[rolling]\nsurface = "sphere"\nradius = -1.0\n', "positive"),
+        (
+            '[rolling]\nsurface = "sphere"\nradius = 0.1\n[initial]\nxi = [0, 0, 0, 0, 0, 0]\n',
+            "omega",
+        ),
+        ('[rolling]\nsurface = "ellipsoid"\n', "semi_axes"),
+    ],
+    ids=["surface", "radius", "xi", "semi-axes"],
+)
+def test_a_rolling_table_names_its_mistakes(tmp_path, table, message):
+    with pytest.raises(bd.SceneFileError, match=message):
+        bd.SceneFile.load(_write(tmp_path, RIGID + table))
