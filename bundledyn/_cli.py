@@ -82,6 +82,11 @@ def _summary(scene_file, traj, diagnostics, elapsed):
         f"  poses in {frame_name(scene)}: rotations orthogonal to "
         f"{float(diagnostics.orthogonality_error.max()):.1e}"
     )
+    residual = np.asarray(diagnostics.constraint_residual)
+    if residual.shape[-1]:
+        print(
+            f"  constraints ({type(scene.mode).__name__}): largest residual {np.abs(residual).max():.1e}"
+        )
 
 
 def _write_pictures(scene_file, traj, diagnostics, out, stem):
@@ -130,6 +135,7 @@ def _write_trajectory(scene_file, traj, diagnostics, path, elapsed):
             U=traj.U,
             energy=diagnostics.energy,
             spatial_momentum=diagnostics.spatial_momentum,
+            constraint_residual=diagnostics.constraint_residual,
             scene=np.array(scene_file.text),
             metadata=np.array(json.dumps(metadata)),
         )

@@ -13,15 +13,18 @@ from ._effects import AbstractPotential
 from ._geometry import kinetic_energy
 from ._modes import galilean_kinematics
 from ._scene import Scene
+from ._state import State
 
 
 class Diagnostics(NamedTuple):
     """What users check first of a trajectory, each at every saved time: the energy and the
-    spatial momentum in the Galilean frame, and the rotations' orthogonality error."""
+    spatial momentum in the Galilean frame, the rotations' orthogonality error and the
+    residuals of the constraints the scene's mode keeps (`r = 0` rows if none)."""
 
     energy: Float[Array, " n"]
     spatial_momentum: Float[Array, "n 6"]
     orthogonality_error: Float[Array, " n"]
+    constraint_residual: Float[Array, "n r"]
 
 
 class Trajectory(eqx.Module):
@@ -93,6 +96,23 @@ class Trajectory(eqx.Module):
 
     @eqx.filter_jit
     def diagnostics(self) -> Diagnostics:
-        """`energy`, `spatial_momentum` and `orthogonality_error` in one compiled program,
-        for a caller that reads all three (the command line's summary, files and plots)."""
-        return Diagnostics(self.energy(), self.spatial_momentum(), self.orthogonality_error())
+        """`energy`, `spatial_momentum`, `orthogonality_error` and `constraint_residual` in
+        one compiled program, for a caller that reads them all (the command line's summary,
+        files and plots)."""
+        return Diagnostics(
+            self.energy(),
+            self.spatial_momentum(),
+            self.orthogonality_error(),
+            self.constraint_residual(),
+        )
+
+    @eqx.filter_jit
+    def constraint_residual(self) -> Float[Array, "n r"]:
+        """The residuals of the constraints the scene's mode keeps (`AbstractMode.constraint_residual`:
+        a rolling body's contact velocity and height) at every saved time; `r = 0` if none."""
+        mode, scene = self.scene.mode, self.scene
+
+        def residual(g, q, xi, qdot):
+            return mode.constraint_residual(scene, State(g, q, xi, qdot))
+
+        return jax.vmap(residual)(self.g, self.q, self.xi, self.qdot)

@@ -354,3 +354,17 @@ def test_the_layout_gives_back_the_state_it_encodes():
     assert y[1].shape == (3,)  # the characteristics: the angular velocity alone
     for a, b in zip(jax.tree.leaves(term.decode(0.0, y)), jax.tree.leaves(state), strict=True):
         np.testing.assert_allclose(a, b, rtol=0, atol=1e-15)
+
+
+def test_the_trajectory_reports_the_rolling_constraints_residuals():
+    scene = _disc_scene(bd.TorusContact(0.18, 0.03))
+    g0 = bd.lie.se3_exp(jnp.array([0.3, 0.0, 0.0, 0.0, 0.0, 0.0]))
+    traj = _simulate(
+        scene, scene.mode.state(g0, jnp.array([0.0, 6.0, 0.5])), 1.0, jnp.linspace(0, 1, 11)
+    )
+    residual = traj.diagnostics().constraint_residual
+    assert residual.shape == (11, 4)  # the contact velocity (3) and height (1)
+    assert float(jnp.max(jnp.abs(residual))) < 1e-14
+    # a slipping state has a residual of its slip
+    slipping = bd.State(traj.g[0], traj.q[0], traj.xi[0].at[3].add(0.1), traj.qdot[0])
+    np.testing.assert_allclose(scene.mode.constraint_residual(scene, slipping)[0], 0.1, rtol=1e-12)

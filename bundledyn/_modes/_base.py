@@ -112,6 +112,11 @@ class AbstractMode(eqx.Module):
         (`recharted_shape`), or `y` itself when nothing is recharted."""
 
     @abc.abstractmethod
+    def constraint_residual(self, scene: SceneParts, state: State) -> jax.Array:
+        """The residuals of the constraints the mode keeps, at a decoded `state`: zero when
+        they hold, shape `(r,)` (`(0,)` for a mode that keeps none)."""
+
+    @abc.abstractmethod
     def window_chart(self, scene: SceneParts) -> AbstractWindowChart:
         """The coordinates of an identification window's initial state."""
 

@@ -53,6 +53,9 @@ class FreeShapeMode(AbstractFreeMotionMode):
         q, qdot = recharted_shape(scene.system, q, qdot)
         return self.pack(scene, g, q, U, qdot)
 
+    def constraint_residual(self, scene: SceneParts, state: State):
+        return state.xi[:0]
+
     def window_chart(self, scene: SceneParts):
         return FloatingChart(scene.system.shape_dim)
 

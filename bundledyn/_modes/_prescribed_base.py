@@ -85,6 +85,9 @@ class PrescribedBaseMode(AbstractMode):
         q, qdot = recharted_shape(scene.system, *self._shape(scene, y))
         return y[0], jnp.concatenate([q, qdot])
 
+    def constraint_residual(self, scene: SceneParts, state: State):
+        return state.xi[:0]
+
     def window_chart(self, scene: SceneParts):
         return DrivenChart(scene.system.shape_dim)
 

@@ -63,6 +63,9 @@ class PrescribedShapeMode(AbstractMode):
     def recharted(self, scene: SceneParts, t, y):
         return y  # the shape is given, not integrated
 
+    def constraint_residual(self, scene: SceneParts, state: State):
+        return state.xi[:0]
+
     def window_chart(self, scene: SceneParts):
         return FloatingChart(scene.system.shape_dim)
 

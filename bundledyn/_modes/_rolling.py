@@ -168,6 +168,14 @@ class RollingMode(AbstractFreeMotionMode):
     def recharted(self, scene: SceneParts, t, y):
         return y
 
+    def constraint_residual(self, scene: SceneParts, state: State):
+        r"""The contact point's velocity $v + \omega\times c$ (body frame, 3 rows) and its
+        height above the plane (1 row)."""
+        g, xi = state.g, state.xi
+        c = self.contact(g[:3, :3])
+        height = jnp.dot(self.normal, g[:3, 3] + matmul(g[:3, :3], c)) - self.offset
+        return jnp.concatenate([xi[3:] + jnp.cross(xi[:3], c), height[None]])
+
     def window_chart(self, scene: SceneParts):
         raise ValueError(
             "identification does not fit rolling scenes (`RollingMode`): its window states "
