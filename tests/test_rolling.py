@@ -368,3 +368,56 @@ def test_the_trajectory_reports_the_rolling_constraints_residuals():
     # a slipping state has a residual of its slip
     slipping = bd.State(traj.g[0], traj.q[0], traj.xi[0].at[3].add(0.1), traj.qdot[0])
     np.testing.assert_allclose(scene.mode.constraint_residual(scene, slipping)[0], 0.1, rtol=1e-12)
+
+
+EGG_MJCF = """
+<mujoco>
+  <worldbody>
+    <body name="egg">
+      <freejoint/>
+      <geom name="shell" type="ellipsoid" size="0.15 0.2 0.1" pos="0.01 -0.02 0.03" density="800"/>
+    </body>
+  </worldbody>
+</mujoco>
+"""
+
+
+def test_a_rolling_contact_on_an_imported_mjcf_body_equals_the_body_built_in_python():
+    pytest.importorskip("mujoco")
+    radii, centre = jnp.array([0.15, 0.2, 0.1]), jnp.array([0.01, -0.02, 0.03])
+    surface = bd.contact_surface_from_mjcf(EGG_MJCF, "shell")
+    assert isinstance(surface, bd.EllipsoidContact)
+    with pytest.warns(UserWarning, match="contacts of 1 collision geom"):
+        imported = bd.Scene.from_mjcf(EGG_MJCF, gravity=True)  # MuJoCo's contacts are not kept
+    imported = bd.Scene(imported.system, imported.effects, mode=bd.RollingMode(surface))
+    # the same egg from its solid: mass = density * 4/3 pi abc, the solid's moments
+    mass = 800.0 * 4.0 / 3.0 * np.pi * float(jnp.prod(radii))
+    inertia = jnp.diag(bd.Ellipsoid(radii).principal_moments(mass))
+    python = bd.Scene(
+        bd.RigidBody(mass, centre, inertia),
+        [bd.Gravity(9.81)],
+        mode=bd.RollingMode(bd.EllipsoidContact(radii, centre)),
+    )
+    g0 = bd.lie.se3_exp(jnp.array([0.3, -0.5, 0.2, 0.0, 0.0, 0.0]))
+    ts = jnp.linspace(0.0, 1.5, 7)
+    ours = _simulate(imported, imported.mode.state(g0, jnp.array([1.0, 3.0, -2.0])), 1.5, ts)
+    theirs = _simulate(python, python.mode.state(g0, jnp.array([1.0, 3.0, -2.0])), 1.5, ts)
+    np.testing.assert_allclose(ours.g, theirs.g, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(ours.xi, theirs.xi, rtol=0, atol=1e-11)
+
+
+@pytest.mark.parametrize(
+    "geom, message",
+    [
+        ('type="cylinder" size="0.2 0.02"', "along a line"),
+        ('type="box" size="0.1 0.1 0.1"', "not a sphere"),
+    ],
+    ids=["cylinder", "box"],
+)
+def test_a_geom_that_does_not_roll_at_a_point_is_refused(geom, message):
+    pytest.importorskip("mujoco")
+    xml = (
+        f'<mujoco><worldbody><body><freejoint/><geom name="g" {geom}/></body></worldbody></mujoco>'
+    )
+    with pytest.raises(ValueError, match=message):
+        bd.contact_surface_from_mjcf(xml, "g")

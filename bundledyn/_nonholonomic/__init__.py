@@ -32,6 +32,7 @@ from ._maggi import (
     maggi_accelerations,
     maggi_equations,
 )
+from ._mjcf_contact import contact_surface_from_mjcf
 from ._parametric import ParametricConstraints
 from ._pfaffian import PfaffianConstraints
 from ._rolling_disc import RollingDisc
@@ -63,6 +64,7 @@ __all__ = [
     "characteristic_forces",
     "constrained_accelerations",
     "constrained_velocities",
+    "contact_surface_from_mjcf",
     "contact_twist",
     "holonomic_terms",
     "kinematic_characteristics",

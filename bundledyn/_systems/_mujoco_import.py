@@ -66,6 +66,7 @@ from ._rigid_body import RigidBody
 __all__ = [
     "FixedTendon",
     "ModelParts",
+    "compiled_mjcf",
     "parts_from_mjcf",
     "parts_from_mjmodel",
     "parts_from_urdf",
@@ -149,11 +150,16 @@ def parts_from_mjcf(source, *, passive: bool = False) -> ModelParts:
 
     The `ModelParts`.
     """
+    return parts_from_mjmodel(compiled_mjcf(source), passive=passive)
+
+
+def compiled_mjcf(source):
+    """The `mujoco.MjModel` of `source`: a path to an MJCF file, an MJCF XML string, or an
+    already compiled `mujoco.MjModel` (given back as it is)."""
     mujoco = _import_mujoco()
     # MuJoCo's bindings are compiled and ship no type stubs: pyright cannot see `MjModel`.
     is_model = isinstance(source, mujoco.MjModel)  # pyright: ignore[reportAttributeAccessIssue]
-    model = source if is_model else _compile(mujoco, source)
-    return parts_from_mjmodel(model, passive=passive)
+    return source if is_model else _compile(mujoco, source)
 
 
 def _compile(mujoco, source):
