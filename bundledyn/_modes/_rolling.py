@@ -47,7 +47,7 @@ class RollingMode(AbstractFreeMotionMode):
     conservative effects is conserved.
 
     ```python
-    ball = bd.RigidBody(mass, inertia)
+    ball = bd.RigidBody(mass, jnp.zeros(3), inertia)
     scene = bd.Scene(ball, [bd.Gravity(9.81)], mode=bd.RollingMode(bd.SphereContact(0.1)))
     state = scene.mode.state(g0, omega0)  # on the plane, with the rolling twist
     ```
