@@ -426,14 +426,20 @@ def _rolling(t: _Table) -> RollingMode:
     return mode
 
 
+def _pose(t: _Table):
+    """`[initial]`'s pose: its `rotation` (a rotation vector) and `position`."""
+    g = np.eye(4)
+    g[:3, :3] = np.asarray(lie.so3_exp(jnp.asarray(t.array("rotation", (3,), (0.0, 0.0, 0.0)))))
+    g[:3, 3] = t.array("position", (3,), (0.0, 0.0, 0.0))
+    return g
+
+
 def _rolling_state(t: _Table, mode: RollingMode):
     """`[initial]` of a rolling scene: the pose (placed on the plane) and `omega`."""
     for key in ("q", "qdot", "xi"):
         if t.has(key):
             raise t.fail(key, "a rolling body has no shape, and its twist follows from `omega`.")
-    g = np.eye(4)
-    g[:3, :3] = np.asarray(lie.so3_exp(jnp.asarray(t.array("rotation", (3,), (0.0, 0.0, 0.0)))))
-    g[:3, 3] = t.array("position", (3,), (0.0, 0.0, 0.0))
+    g = _pose(t)
     omega = t.array("omega", (3,), (0.0, 0.0, 0.0))
     t.done()
     return mode.state(g, omega)
@@ -441,9 +447,7 @@ def _rolling_state(t: _Table, mode: RollingMode):
 
 def _state(t: _Table, system, shape, t0):
     d = system.shape_dim
-    g = np.eye(4)
-    g[:3, :3] = np.asarray(lie.so3_exp(jnp.asarray(t.array("rotation", (3,), (0.0, 0.0, 0.0)))))
-    g[:3, 3] = t.array("position", (3,), (0.0, 0.0, 0.0))
+    g = _pose(t)
     if shape is not None:
         for key in ("q", "qdot"):
             if t.has(key):
