@@ -22,6 +22,11 @@ def _rolling_scene(inertia, surface, *, mass=1.5, effects=None, **plane):
     return bd.Scene(body, effects, mode=bd.RollingMode(surface, **plane))
 
 
+# One number of saved states per kind of body: scenes that differ only in numbers (their
+# inertia, plane, horizon) then share one compiled solve.
+BALL_SAVES, DISC_SAVES = 11, 21
+
+
 def _simulate(scene, state, t1, ts=None, **options):
     saveat = diffrax.SaveAt(ts=ts) if ts is not None else None
     return bd.simulate(scene, state, t1, rtol=1e-12, atol=1e-12, saveat=saveat, **options)
@@ -41,11 +46,11 @@ def test_a_homogeneous_ball_rolls_straight_with_constant_angular_velocity():
     omega = jnp.array([1.0, 2.0, 0.5])
     state = scene.mode.state(g0, omega)
     assert float(state.g[2, 3]) == pytest.approx(BALL_RADIUS, abs=1e-15)
-    ts = jnp.linspace(0.0, 2.0, 5)
+    ts = jnp.linspace(0.0, 2.0, BALL_SAVES)
     traj = _simulate(scene, state, 2.0, ts)
     omega_world = jnp.einsum("tij,tj->ti", traj.g[:, :3, :3], traj.xi[:, :3])
     np.testing.assert_allclose(
-        omega_world, jnp.broadcast_to(g0[:3, :3] @ omega, (5, 3)), atol=1e-10
+        omega_world, jnp.broadcast_to(g0[:3, :3] @ omega, (BALL_SAVES, 3)), atol=1e-10
     )
     velocity = jnp.cross(g0[:3, :3] @ omega, jnp.array([0.0, 0.0, BALL_RADIUS]))
     expected = state.g[None, :3, 3] + ts[:, None] * velocity[None, :]
@@ -60,7 +65,7 @@ def test_a_ball_rolls_down_an_incline_at_five_sevenths_of_the_free_acceleration(
         BALL_INERTIA, bd.SphereContact(BALL_RADIUS), mass=BALL_MASS, normal=normal, offset=0.2
     )
     state = scene.mode.state(jnp.eye(4), jnp.zeros(3))
-    ts = jnp.linspace(0.0, 1.5, 4)
+    ts = jnp.linspace(0.0, 1.5, BALL_SAVES)
     traj = _simulate(scene, state, 1.5, ts)
     downhill = jnp.array([jnp.cos(alpha), 0.0, -jnp.sin(alpha)])
     travelled = (traj.g[:, :3, 3] - state.g[None, :3, 3]) @ downhill
@@ -86,7 +91,7 @@ def test_the_chaplygin_sphere_keeps_its_four_invariants():
     scene = _rolling_scene(inertia, bd.SphereContact(0.1), mass=1.0)
     g0 = bd.lie.se3_exp(jnp.array([0.3, -0.2, 0.5, 0.0, 0.0, 0.0]))
     state = scene.mode.state(g0, jnp.array([1.0, -2.0, 3.0]))
-    traj = _simulate(scene, state, 3.0, jnp.linspace(0.0, 3.0, 31))
+    traj = _simulate(scene, state, 3.0, jnp.linspace(0.0, 3.0, BALL_SAVES))
     momentum = jax.vmap(lambda g, xi: _contact_momentum(scene.mode, 1.0, inertia, g, xi))(
         traj.g, traj.xi
     )
@@ -112,7 +117,13 @@ CRITICAL_SPIN = np.sqrt(
 
 
 def _axis_rotation(axis, angle):
-    return bd.lie.so3_exp(angle * jnp.eye(3, dtype=float)[axis])
+    """The rotation by `angle` about coordinate axis `axis`, written out in sines and cosines
+    (not by the library's exponential: an independent derivation, and a small program to
+    differentiate three times)."""
+    c, s = jnp.cos(angle), jnp.sin(angle)
+    i, j = (axis + 1) % 3, (axis + 2) % 3
+    R = jnp.zeros((3, 3), dtype=c.dtype).at[axis, axis].set(1.0)
+    return R.at[i, i].set(c).at[j, j].set(c).at[j, i].set(s).at[i, j].set(-s)
 
 
 def _orientation(q):
@@ -171,7 +182,7 @@ def test_the_rolling_disc_on_se3_moves_as_its_euler_angle_equations_move_it():
     q0 = jnp.array([0.1, -0.2, 0.3, 0.25, 0.4])
     e0 = jnp.array([0.7, -0.3, 5.0])  # heading, tilt and spin rates
     scene = _disc_scene()
-    ts = jnp.linspace(0.0, 2.0, 11)
+    ts = jnp.linspace(0.0, 2.0, DISC_SAVES)
     traj = _simulate(scene, _disc_state(scene, q0, e0), 2.0, ts)
     reference = diffrax.diffeqsolve(
         bd.NonholonomicTerm(_disc_in_euler_angles()), diffrax.Tsit5(), 0.0, 2.0, None, (q0, e0),
@@ -225,7 +236,7 @@ def test_the_disc_precesses_steadily_where_its_algebraic_condition_holds(offset,
     state = _disc_state(
         scene, jnp.array([0.0, 0.0, 0.0, tilt, 0.0]), jnp.array([heading_rate, 0.0, spin])
     )
-    traj = _simulate(scene, state, 3.0, jnp.linspace(0.0, 3.0, 31))
+    traj = _simulate(scene, state, 3.0, jnp.linspace(0.0, 3.0, DISC_SAVES))
     wobble = float(jnp.max(jnp.abs(jnp.arcsin(traj.g[:, 2, 1]) - tilt)))
     assert (wobble < 1e-10) if steady else (wobble > 1e-5)
 
@@ -272,7 +283,7 @@ def test_the_disc_on_se3_falls_below_the_critical_spin_and_rolls_on_above_it(fac
     state = _disc_state(
         scene, jnp.array([0.0, 0.0, 0.0, tilt, 0.0]), jnp.array([0.0, 0.0, factor * CRITICAL_SPIN])
     )
-    traj = _simulate(scene, state, 4.0, jnp.linspace(0.0, 4.0, 81))
+    traj = _simulate(scene, state, 4.0, jnp.linspace(0.0, 4.0, DISC_SAVES))
     axle_up = jnp.abs(traj.g[:, 2, 1])  # sin of the tilt
     largest = float(jnp.max(axle_up))
     assert (largest < 10 * tilt) if stays_up else (largest > 0.3)
@@ -288,7 +299,10 @@ def test_energy_is_conserved_on_every_surface(surface):
     scene = _disc_scene(surface)
     g0 = bd.lie.se3_exp(jnp.array([0.4, 0.3, -0.2, 0.0, 0.0, 0.0]))
     traj = _simulate(
-        scene, scene.mode.state(g0, jnp.array([2.0, -4.0, 1.0])), 2.0, jnp.linspace(0, 2, 21)
+        scene,
+        scene.mode.state(g0, jnp.array([2.0, -4.0, 1.0])),
+        2.0,
+        jnp.linspace(0, 2, DISC_SAVES),
     )
     energy = np.asarray(traj.energy())
     np.testing.assert_allclose(energy, energy[0], rtol=1e-10)
@@ -360,10 +374,10 @@ def test_the_trajectory_reports_the_rolling_constraints_residuals():
     scene = _disc_scene(bd.TorusContact(0.18, 0.03))
     g0 = bd.lie.se3_exp(jnp.array([0.3, 0.0, 0.0, 0.0, 0.0, 0.0]))
     traj = _simulate(
-        scene, scene.mode.state(g0, jnp.array([0.0, 6.0, 0.5])), 1.0, jnp.linspace(0, 1, 11)
+        scene, scene.mode.state(g0, jnp.array([0.0, 6.0, 0.5])), 1.0, jnp.linspace(0, 1, DISC_SAVES)
     )
     residual = traj.diagnostics().constraint_residual
-    assert residual.shape == (11, 4)  # the contact velocity (3) and height (1)
+    assert residual.shape == (DISC_SAVES, 4)  # the contact velocity (3) and height (1)
     assert float(jnp.max(jnp.abs(residual))) < 1e-14
     # a slipping state has a residual of its slip
     slipping = bd.State(traj.g[0], traj.q[0], traj.xi[0].at[3].add(0.1), traj.qdot[0])
@@ -399,7 +413,7 @@ def test_a_rolling_contact_on_an_imported_mjcf_body_equals_the_body_built_in_pyt
         mode=bd.RollingMode(bd.EllipsoidContact(radii, centre)),
     )
     g0 = bd.lie.se3_exp(jnp.array([0.3, -0.5, 0.2, 0.0, 0.0, 0.0]))
-    ts = jnp.linspace(0.0, 1.5, 7)
+    ts = jnp.linspace(0.0, 1.5, DISC_SAVES)
     ours = _simulate(imported, imported.mode.state(g0, jnp.array([1.0, 3.0, -2.0])), 1.5, ts)
     theirs = _simulate(python, python.mode.state(g0, jnp.array([1.0, 3.0, -2.0])), 1.5, ts)
     np.testing.assert_allclose(ours.g, theirs.g, rtol=0, atol=1e-12)
