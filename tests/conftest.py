@@ -1,3 +1,4 @@
+import contextlib
 import gc
 import os
 
@@ -64,15 +65,31 @@ jax.config.update("jax_numpy_dtype_promotion", "strict")
 jax.config.update("jax_numpy_rank_promotion", "raise")
 
 
+@contextlib.contextmanager
+def _full_optimization():
+    previous = jax.config.read("jax_disable_most_optimizations")
+    jax.config.update("jax_disable_most_optimizations", False)
+    try:
+        yield
+    finally:
+        jax.config.update("jax_disable_most_optimizations", previous)
+
+
 @pytest.fixture(scope="module")
 def optimized_compilation():
     """XLA's full optimisation for a module whose time goes into running, not compiling:
     an identification fit solves its windows a thousand times, and there unoptimised code
     costs more than optimising it (the MuJoCo chain's fit and the command's: 256 s -> 83 s)."""
-    previous = jax.config.read("jax_disable_most_optimizations")
-    jax.config.update("jax_disable_most_optimizations", False)
-    yield
-    jax.config.update("jax_disable_most_optimizations", previous)
+    with _full_optimization():
+        yield
+
+
+@pytest.fixture
+def optimized_test_compilation():
+    """`optimized_compilation` for one test: a fit whose many trial steps outweigh its
+    compiling, in a file whose other fits take few."""
+    with _full_optimization():
+        yield
 
 
 @pytest.fixture(scope="module", autouse=True)

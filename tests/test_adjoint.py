@@ -142,9 +142,18 @@ def _assert_gradients_equal(ours, reference):
         np.testing.assert_allclose(np.asarray(a), np.asarray(b), rtol=0, atol=1e-10 * scale)
 
 
+# LieEuler's and RKMK4's step reverse passes are checked everyday by test_stage_reverse.py
+# and RKMK4's solve by the chain below; their whole-solve gradients are in the slow part.
+_SLOW_OPTIONS = ("LieEuler ts", "RKMK4 ts")
+
+
 @pytest.mark.parametrize(
     "case, options",
-    [("rigid", key) for key in OPTIONS if key != "RKMK87 event"],
+    [
+        pytest.param("rigid", key, marks=[pytest.mark.slow] if key in _SLOW_OPTIONS else [])
+        for key in OPTIONS
+        if key != "RKMK87 event"
+    ],
 )
 def test_stored_steps_gradients_equal_checkpointed_ones(case, options):
     params = _params(case)
