@@ -21,7 +21,12 @@ import bundledyn as bd
 from bundledyn import identify
 
 # Multibody fits: slow; test_identify_rigid.py is the everyday identification check.
-pytestmark = [pytest.mark.usefixtures("optimized_compilation"), pytest.mark.slow]
+# One worker for the file in `.ci/run`'s slow part (`--dist loadgroup`): its tests share fits.
+pytestmark = [
+    pytest.mark.usefixtures("optimized_compilation"),
+    pytest.mark.slow,
+    pytest.mark.xdist_group("identify"),
+]
 
 T1, RATE = 2.0, 100
 STATE0 = bd.State(

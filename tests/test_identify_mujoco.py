@@ -30,7 +30,12 @@ from bundledyn._identify_file import run_file
 mujoco = pytest.importorskip("mujoco")
 # Fits against mujoco.sysid's model and the command: slow; test_identify_rigid.py is the
 # everyday identification check.
-pytestmark = [pytest.mark.usefixtures("optimized_compilation"), pytest.mark.slow]
+# One worker for the file in `.ci/run`'s slow part (`--dist loadgroup`): its tests share fits.
+pytestmark = [
+    pytest.mark.usefixtures("optimized_compilation"),
+    pytest.mark.slow,
+    pytest.mark.xdist_group("identify_mujoco"),
+]
 
 # The chain with motors at its hinges (bundledyn ignores them: the torques are inputs).
 CHAIN = (bd.models / "floating_chain.xml").read_text()
