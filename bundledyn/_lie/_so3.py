@@ -7,6 +7,7 @@ double-`jnp.where` trick), so values and derivatives of every order are finite a
 to rounding at $\theta = 0$, at tiny angles and up to $\theta = \pi$.
 """
 
+import functools
 import math
 from fractions import Fraction
 
@@ -74,6 +75,10 @@ _SERIES = {
 }
 
 
+# Jitted, as `_poly` below: a solver's step and its adjoint call them dozens of times with
+# the same shapes, and JAX then traces each once and reuses its jaxpr (and derivatives);
+# XLA inlines the calls, so the optimized programs are those of the inlined code.
+@functools.partial(jax.jit, static_argnames="names")
 def _coefficients(x, names):
     """The coefficients `names` (from "abcdefgh") as functions of x = θ², safe at x = 0.
 
@@ -161,6 +166,7 @@ def _eye_like(w):
     return jnp.broadcast_to(jnp.eye(3, dtype=w.dtype), w.shape[:-1] + (3, 3))
 
 
+@jax.jit
 def _poly(w, c0, c1, c2):
     """c0 I + c1 w̃ + c2 w̃² with scalar (batched) coefficients; w̃² = w wᵀ - |w|² I."""
     e = lambda c: c[..., None, None]
