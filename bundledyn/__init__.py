@@ -49,6 +49,7 @@ from ._identify_file import IdentificationFile
 from ._modes import (
     AbstractFreeMotionMode,
     AbstractMode,
+    AbstractPlaneContactMode,
     AbstractWindowChart,
     FloatingBase,
     Free,
@@ -59,6 +60,7 @@ from ._modes import (
     PrescribedShapeMode,
     RigidBodyMode,
     RollingMode,
+    SkatingMode,
 )
 from ._nonholonomic import (
     AbstractContactSurface,
@@ -74,6 +76,7 @@ from ._nonholonomic import (
     NonholonomicTerm,
     ParametricConstraints,
     PfaffianConstraints,
+    PointContact,
     RollingDisc,
     SphereContact,
     TorusContact,
@@ -147,6 +150,7 @@ __all__ = [
     "AbstractMultibody",
     "AbstractNonholonomicEquations",
     "AbstractNonholonomicSystem",
+    "AbstractPlaneContactMode",
     "AbstractPotential",
     "AbstractRKMK",
     "AbstractSceneTerm",
@@ -192,6 +196,7 @@ __all__ = [
     "NonholonomicTerm",
     "ParametricConstraints",
     "PfaffianConstraints",
+    "PointContact",
     "Prescribed",
     "PrescribedBase",
     "PrescribedBaseMode",
@@ -214,6 +219,7 @@ __all__ = [
     "ShapeForce",
     "ShapePotential",
     "ShapeSpring",
+    "SkatingMode",
     "SphereContact",
     "Spherical",
     "State",

@@ -9,14 +9,17 @@ from ._charts import AbstractWindowChart, ChannelScales, DrivenChart, FloatingCh
 from ._floating import floating_field, galilean_kinematics
 from ._free_shape import FreeShapeMode, select as _select_free_shape
 from ._motions import FloatingBase, Free, Prescribed, PrescribedBase
+from ._plane_contact import AbstractPlaneContactMode
 from ._prescribed_base import PrescribedBaseMode, select as _select_prescribed_base
 from ._prescribed_shape import PrescribedShapeMode, select as _select_prescribed_shape
 from ._rigid_body import RigidBodyMode, select as _select_rigid_body
 from ._rolling import RollingMode
+from ._skating import SkatingMode
 
 __all__ = [
     "AbstractFreeMotionMode",
     "AbstractMode",
+    "AbstractPlaneContactMode",
     "AbstractWindowChart",
     "ChannelScales",
     "DrivenChart",
@@ -32,6 +35,7 @@ __all__ = [
     "RollingMode",
     "SELECTIONS",
     "SceneParts",
+    "SkatingMode",
     "floating_field",
     "frame_shift",
     "galilean_kinematics",

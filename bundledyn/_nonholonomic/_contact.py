@@ -25,6 +25,7 @@ __all__ = [
     "AbstractContactSurface",
     "DiscContact",
     "EllipsoidContact",
+    "PointContact",
     "SphereContact",
     "TorusContact",
     "contact_twist",
@@ -38,12 +39,13 @@ def _positive(owner: str, name: str, value) -> None:
         raise ValueError(f"`{owner}.{name}` must be finite and positive, got {v}.")
 
 
-def _unit_axis(owner: str, axis) -> Float[Array, "3"]:
+def unit_axis(owner: str, axis, name: str = "axis") -> Float[Array, "3"]:
+    """`axis` as a unit 3-vector, refused with a `ValueError` if it is not a nonzero one."""
     axis = jnp.asarray(axis, dtype=float)
-    check_shape(f"{owner}.axis", axis, (3,))
+    check_shape(f"{owner}.{name}", axis, (3,))
     norm = concrete(jnp.linalg.norm(axis))
-    if norm is not None and not norm > 0:
-        raise ValueError(f"`{owner}.axis` must be a nonzero vector, e.g. (0, 1, 0).")
+    if norm is not None and not (np.isfinite(norm) and norm > 0):
+        raise ValueError(f"`{owner}.{name}` must be a nonzero finite vector, e.g. (0, 1, 0).")
     return axis / jnp.linalg.norm(axis)
 
 
@@ -73,6 +75,27 @@ class AbstractContactSurface(eqx.Module):
 
         $c(n)$, shape `(3,)`.
         """
+
+
+class PointContact(AbstractContactSurface):
+    r"""A sharp point fixed in the body, such as a knife edge's or a skate blade's tip:
+    $c(n) = c_0$ whatever the plane's normal.
+
+    **Arguments:**
+
+    - `point`: $c_0$ in the body frame.
+    """
+
+    point: Float[Array, "3"]
+
+    def __init__(self, point):
+        self.point = jnp.asarray(point, dtype=float)
+
+    def __check_init__(self):
+        check_shape("PointContact.point", self.point, (3,))
+
+    def contact_point(self, n):
+        return self.point
 
 
 class SphereContact(AbstractContactSurface):
@@ -130,7 +153,7 @@ class DiscContact(AbstractContactSurface):
 
     def __init__(self, radius, axis=(0.0, 1.0, 0.0), centre=(0.0, 0.0, 0.0)):
         self.radius = jnp.asarray(radius, dtype=float)
-        self.axis = _unit_axis("DiscContact", axis)
+        self.axis = unit_axis("DiscContact", axis)
         self.centre = _as_centre("DiscContact", centre)
 
     def __check_init__(self):
@@ -159,7 +182,7 @@ class TorusContact(AbstractContactSurface):
     def __init__(self, radius, tube_radius, axis=(0.0, 1.0, 0.0), centre=(0.0, 0.0, 0.0)):
         self.radius = jnp.asarray(radius, dtype=float)
         self.tube_radius = jnp.asarray(tube_radius, dtype=float)
-        self.axis = _unit_axis("TorusContact", axis)
+        self.axis = unit_axis("TorusContact", axis)
         self.centre = _as_centre("TorusContact", centre)
 
     def __check_init__(self):
