@@ -25,8 +25,14 @@ from ._effects import (
 )
 from ._frames import Boosted, FreeFalling
 from ._geometry import connection
-from ._modes import Prescribed, RollingMode
-from ._nonholonomic import DiscContact, EllipsoidContact, SphereContact, TorusContact
+from ._modes import AbstractPlaneContactMode, Prescribed, RollingMode, SkatingMode
+from ._nonholonomic import (
+    DiscContact,
+    EllipsoidContact,
+    PointContact,
+    SphereContact,
+    TorusContact,
+)
 from ._paths import models
 from ._scene import Scene, model_effects
 from ._simulate import simulate
@@ -406,22 +412,30 @@ _SURFACES = {
     "disc": (DiscContact, ("radius",), ("axis", "centre")),
     "torus": (TorusContact, ("radius", "tube_radius"), ("axis", "centre")),
     "ellipsoid": (EllipsoidContact, (), ("semi_axes", "centre")),
+    "point": (PointContact, (), ("point",)),
+}
+_REQUIRED_VECTORS = {"ellipsoid": ("semi_axes",), "point": ("point",)}
+# Each contact table: its mode, the surfaces it takes, and its mode's own vectors.
+_CONTACTS = {
+    "rolling": (RollingMode, ("sphere", "disc", "torus", "ellipsoid"), ()),
+    "skating": (SkatingMode, ("point", "disc"), ("blade_axis",)),
 }
 
 
-def _rolling(t: _Table) -> RollingMode:
-    """The `[rolling]` table: a contact surface rolling on a plane."""
-    kind = t.string("surface", choices=set(_SURFACES))
+def _contact(t: _Table, name: str) -> AbstractPlaneContactMode:
+    """The `[rolling]` or `[skating]` table: a contact surface on a plane."""
+    make_mode, kinds, own = _CONTACTS[name]
+    kind = t.string("surface", choices=set(kinds))
     make, numbers, vectors = _SURFACES[kind]
-    required = ("semi_axes",) if kind == "ellipsoid" else ()
     arguments = {key: t.number(key) for key in numbers}
     for key in vectors:
-        if key in required or t.has(key):
+        if key in _REQUIRED_VECTORS.get(kind, ()) or t.has(key):
             arguments[key] = t.array(key, (3,))
-    normal = t.array("normal", (3,), (0.0, 0.0, 1.0))
-    offset = t.number("offset", 0.0)
+    plane: dict[str, Any] = {key: t.array(key, (3,)) for key in own if t.has(key)}
+    plane["normal"] = t.array("normal", (3,), (0.0, 0.0, 1.0))
+    plane["offset"] = t.number("offset", 0.0)
     with t.building("surface"):
-        mode = RollingMode(make(**arguments), normal=normal, offset=offset)
+        mode = make_mode(make(**arguments), **plane)
     t.done()
     return mode
 
@@ -434,15 +448,21 @@ def _pose(t: _Table):
     return g
 
 
-def _rolling_state(t: _Table, mode: RollingMode):
-    """`[initial]` of a rolling scene: the pose (placed on the plane) and `omega`."""
+def _contact_state(t: _Table, mode: AbstractPlaneContactMode):
+    """`[initial]` of a scene on a plane contact: the pose (placed on the plane), `omega` and,
+    on a blade, the speed `sliding` along it."""
     for key in ("q", "qdot", "xi"):
         if t.has(key):
-            raise t.fail(key, "a rolling body has no shape, and its twist follows from `omega`.")
+            raise t.fail(
+                key, "a body on a plane contact has no shape, and its twist follows from `omega`."
+            )
     g = _pose(t)
     omega = t.array("omega", (3,), (0.0, 0.0, 0.0))
+    sliding = None
+    if isinstance(mode, SkatingMode):
+        sliding = np.array([t.number("sliding", 0.0)])
     t.done()
-    return mode.state(g, omega)
+    return mode.state(g, omega, sliding)
 
 
 def _state(t: _Table, system, shape, t0):
@@ -493,6 +513,11 @@ class SceneFile:
       `centre`); the plane's `normal` (default up) and `offset`. Its `[initial]` takes
       `position`, `rotation` and the body angular velocity `omega` (the body is placed on
       the plane, its twist the rolling one); not with `[shape]`.
+    - `[skating]`: the rigid body skates on a blade on a plane (`SkatingMode`): `surface` =
+      `"point"` (`point`) or `"disc"` (a rockered blade: `radius`, `axis`, `centre`), the
+      blade plane's normal `blade_axis` (default $(0, 1, 0)$), the plane's `normal` and
+      `offset`. Its `[initial]` takes `position`, `rotation`, `omega` and the contact point's
+      speed along the blade, `sliding`.
     - `[frame]` `type` = `"galilean"` (default), `"boosted"` (`velocity`) or
       `"free_falling"` (`g`, `direction`).
     - `[initial]` `position`, `rotation` (rotation vector), `q`, `qdot`, and `xi` (6 numbers,
@@ -543,9 +568,14 @@ class SceneFile:
         shape = _prescribed(shape_table, d) if mode == "prescribed" else None
         shape_table.done()
         frame = _frame(root.table("frame", {}))
-        rolling = _rolling(root.table("rolling")) if root.has("rolling") else None
+        contacts = [name for name in _CONTACTS if root.has(name)]
+        if len(contacts) > 1:
+            raise root.fail(
+                contacts[1], "a body rolls or skates: give one of [rolling], [skating]."
+            )
+        contact = _contact(root.table(contacts[0]), contacts[0]) if contacts else None
         with root.building("scene"):
-            scene = Scene(system, effects, shape, frame, mode=rolling)
+            scene = Scene(system, effects, shape, frame, mode=contact)
 
         time = root.table("time")
         t0, t1 = time.number("t0", 0.0), time.number("t1")
@@ -558,8 +588,8 @@ class SceneFile:
         initial = root.table("initial", {})
         state = (
             _state(initial, system, shape, t0)
-            if rolling is None
-            else _rolling_state(initial, rolling)
+            if contact is None
+            else _contact_state(initial, contact)
         )
 
         solver_table = root.table("solver", {})

@@ -271,6 +271,17 @@ def test_shipped_rolling_disc_rolls_and_touches_the_plane():
     np.testing.assert_allclose(omega, [0.0, 6.0, 0.7])
 
 
+def test_shipped_sleigh_skates_on_its_blade():
+    sf = bd.SceneFile.load(bd.scenes / "skating_sleigh.toml")
+    mode = sf.scene.mode
+    assert isinstance(mode, bd.SkatingMode) and isinstance(mode.surface, bd.PointContact)
+    np.testing.assert_allclose(mode.surface.point, [-0.4, 0.0, 0.0])
+    np.testing.assert_allclose(mode.blade_axis, [0.0, 1.0, 0.0])
+    # spun from rest: the blade's tip at rest, the centre of mass moving sideways
+    np.testing.assert_allclose(sf.state.xi, [0.0, 0.0, 1.5, 0.0, 0.6, 0.0], atol=1e-15)
+    assert float(jnp.max(jnp.abs(mode.constraint_residual(sf.scene, sf.state)))) == 0.0
+
+
 @pytest.mark.parametrize(
     "table, message",
     [
@@ -281,8 +292,15 @@ def test_shipped_rolling_disc_rolls_and_touches_the_plane():
             "omega",
         ),
         ('[rolling]\nsurface = "ellipsoid"\n', "semi_axes"),
+        ('[skating]\nsurface = "sphere"\nradius = 0.1\n', "must be one of"),
+        ('[skating]\nsurface = "point"\n', "point"),
+        (
+            '[rolling]\nsurface = "sphere"\nradius = 0.1\n[skating]\nsurface = "point"\n'
+            "point = [0, 0, 0]\n",
+            "one of",
+        ),
     ],
-    ids=["surface", "radius", "xi", "semi-axes"],
+    ids=["surface", "radius", "xi", "semi-axes", "blade surface", "blade point", "both"],
 )
 def test_a_rolling_table_names_its_mistakes(tmp_path, table, message):
     with pytest.raises(bd.SceneFileError, match=message):
