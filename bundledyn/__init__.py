@@ -112,6 +112,7 @@ from ._solver._variational import VariationalMidpoint
 from ._state import State
 from ._systems._affine_body import AffineBody
 from ._systems._base import AbstractInertialSystem, AbstractSystem
+from ._systems._constrained import ConstrainedSystem, JointCoupling
 from ._systems._generic import GenericSystem
 from ._systems._joints import (
     AbstractJoint,
@@ -168,6 +169,7 @@ __all__ = [
     "Capsule",
     "ChaplyginSleigh",
     "Composite",
+    "ConstrainedSystem",
     "DenseMetricJet",
     "Diagnostics",
     "DiscContact",
@@ -184,6 +186,7 @@ __all__ = [
     "Gravity",
     "GravityGradient",
     "IdentificationFile",
+    "JointCoupling",
     "Kinematics",
     "LieButcherTableau",
     "LieEuler",

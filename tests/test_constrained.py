@@ -1,0 +1,147 @@
+"""Holonomic constraints among shape coordinates solved for the dependent ones
+(`ConstrainedSystem`, `JointCoupling`, seed 001 §54): against the unconstrained system's
+equations with Lagrange multipliers for the constraints, conserved energy, and the coupling's
+own residual."""
+
+import diffrax
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+from systems import chain
+
+import bundledyn as bd
+from bundledyn._dynamics import reference_accelerations
+
+GRAVITY = bd.Gravity(9.81, (0.2, -0.1, -1.0))
+
+
+def _coupled_chain():
+    """`chain(4)`: a hinge (q0), a universal joint (q1, q2) and a ball (q3..q5). The universal
+    joint's second angle follows the hinge by a quadratic, the ball's last coordinate is
+    held, and its first follows the universal joint's first angle linearly."""
+    system = chain(4)
+    coupling = bd.JointCoupling(
+        system.shape_dim,
+        [(2, 0, (0.1, 0.5, -0.3)), (5, None, (0.05,)), (3, 1, (0.0, -0.8))],
+        reference=jnp.array([0.1, -0.2, 0.0, 0.3, 0.0, 0.2]),
+    )
+    return system, coupling
+
+
+def _multiplier_accelerations(system, coupling, q, xi, qdot):
+    r"""$(\dot\xi, \ddot q)$ of the unconstrained system under gravity with the constraints'
+    reactions $A^T\lambda$, $A = \partial f/\partial q$, chosen so that $A\ddot q + \dot A\dot q
+    = 0$: the accelerations are affine in $\lambda$ through $G^{-1}$."""
+    F, Q = GRAVITY.generalized_force(system, bd.Kinematics(0.0, jnp.eye(4), q, xi, qdot))
+    free = jnp.concatenate(reference_accelerations(system, q, xi, qdot, F, Q))
+    A = jax.jacfwd(coupling.residual)(q)
+    A_dot_qdot = jax.jvp(lambda q: jax.jacfwd(coupling.residual)(q) @ qdot, (q,), (qdot,))[1]
+    G = system.metric(q)
+    d = system.shape_dim
+    lift = jnp.concatenate([jnp.zeros((A.shape[0], 6)), A], axis=1).T  # reactions on q only
+    response = jnp.linalg.solve(G, lift)  # acceleration per unit multiplier
+    lam = jnp.linalg.solve(A @ response[6:], -(A @ free[6:] + A_dot_qdot))
+    acc = free + response @ lam
+    assert acc.shape == (6 + d,)
+    return acc[:6], acc[6:]
+
+
+@eqx.filter_jit
+def _both(system, coupling, p, xi, pdot):
+    constrained = bd.ConstrainedSystem(system, coupling)
+    F, Q = GRAVITY.generalized_force(constrained, bd.Kinematics(0.0, jnp.eye(4), p, xi, pdot))
+    xi_dot, pddot = reference_accelerations(constrained, p, xi, pdot, F, Q)
+    # the full shape's acceleration along the motion: d²/dt² Φ(p(t))
+    q, qdot = jax.jvp(coupling, (p,), (pdot,))
+    qddot = jax.jvp(lambda p, v: jax.jvp(coupling, (p,), (v,))[1], (p, pdot), (pdot, pddot))[1]
+    return (xi_dot, qddot), _multiplier_accelerations(system, coupling, q, xi, qdot)
+
+
+def test_the_constrained_motion_is_the_one_with_lagrange_multipliers():
+    system, coupling = _coupled_chain()
+    m = len(coupling.free)
+    assert m == 3
+    for key in jax.random.split(jax.random.PRNGKey(3), 3):
+        k = jax.random.split(key, 3)
+        p = 0.6 * jax.random.normal(k[0], (m,))
+        xi = jax.random.normal(k[1], (6,))
+        pdot = jax.random.normal(k[2], (m,))
+        ours, reference = _both(system, coupling, p, xi, pdot)
+        for a, b in zip(ours, reference, strict=True):
+            scale = float(jnp.max(jnp.abs(b)))
+            np.testing.assert_allclose(a, b, rtol=0, atol=1e-11 * scale)
+
+
+def test_a_coupled_chain_keeps_its_energy_through_simulate():
+    system, coupling = _coupled_chain()
+    scene = bd.Scene(bd.ConstrainedSystem(system, coupling), [GRAVITY])
+    state = bd.State(
+        jnp.eye(4),
+        jnp.array([0.2, -0.1, 0.3]),
+        jnp.array([0.3, 0.2, -0.4, 0.1, 0.0, 0.2]),
+        jnp.array([0.5, -0.4, 0.3]),
+    )
+    ts = jnp.linspace(0.0, 1.0, 11)
+    traj = bd.simulate(scene, state, 1.0, rtol=1e-11, atol=1e-11, saveat=diffrax.SaveAt(ts=ts))
+    energy = np.asarray(traj.energy())
+    np.testing.assert_allclose(energy, energy[0], rtol=1e-9)
+    assert np.ptp(np.asarray(traj.q[:, 0])) > 0.1  # the shape moves
+    # the full shape keeps the constraints
+    residual = jax.vmap(lambda p: coupling.residual(coupling(p)))(traj.q)
+    assert float(jnp.max(jnp.abs(residual))) < 1e-15
+
+
+def test_a_coupling_sets_its_coordinates_and_reads_back_the_free_ones():
+    _, coupling = _coupled_chain()
+    p = jnp.array([0.4, -0.7, 1.1])
+    q = coupling(p)
+    np.testing.assert_array_equal(coupling.free_coordinates(q), p)
+    x = 0.4 - 0.1
+    np.testing.assert_allclose(q[2], 0.0 + 0.1 + 0.5 * x - 0.3 * x**2, rtol=1e-15)
+    np.testing.assert_allclose(q[5], 0.2 + 0.05, rtol=1e-15)
+    np.testing.assert_allclose(q[3], 0.3 - 0.8 * (-0.7 + 0.2), rtol=1e-15)
+    np.testing.assert_allclose(coupling.residual(q), 0.0, atol=1e-16)
+    assert float(jnp.max(jnp.abs(coupling.residual(q.at[3].add(0.01))))) == pytest.approx(0.01)
+
+
+def test_couplings_refuse_what_they_cannot_solve():
+    system = chain(3)
+    with pytest.raises(ValueError, match="both set by a coupling and followed"):
+        bd.JointCoupling(3, [(1, 0, (0.0, 1.0)), (2, 1, (0.0, 1.0))])
+    with pytest.raises(ValueError, match="indices must lie"):
+        bd.JointCoupling(3, [(3, 0, (0.0, 1.0))])
+    with pytest.raises(ValueError, match="once"):
+        bd.JointCoupling(3, [(1, 0, (0.0, 1.0)), (1, 2, (0.0, 1.0))])
+    with pytest.raises(ValueError, match="at most 5"):
+        bd.JointCoupling(3, [(1, 0, np.ones(6))])
+    with pytest.raises(ValueError, match="has 3"):
+        bd.ConstrainedSystem(system, bd.JointCoupling(4, [(1, 0, (0.0, 1.0))]))
+
+
+def test_the_written_out_reverse_pass_covers_a_coupled_chain():
+    # `StoredStepsAdjoint` (simulate's default for the Lie-group solvers) steps the field's
+    # written-out reverse pass; on the pulled-back metric it equals autodiff of the field.
+    from bundledyn._term import ReverseModeSceneTerm
+
+    system, coupling = _coupled_chain()
+    scene = bd.Scene(bd.ConstrainedSystem(system, coupling), [GRAVITY, bd.ShapeDamper(0.3)])
+    k = jax.random.split(jax.random.PRNGKey(5), 4)
+    g = bd.lie.se3_exp(jax.random.normal(k[0], (6,)))
+    x = jax.random.normal(k[1], (3 + 6 + 3,))
+    cotangent = (jax.random.normal(k[2], (6,)), jax.random.normal(k[3], (12,)))
+
+    @jax.jit
+    def pullbacks(g, x):
+        def pullback(term):
+            return jax.vjp(lambda g, x: term.body_vf(0.3, (g, x), None), g, x)[1](cotangent)
+
+        return pullback(ReverseModeSceneTerm(scene)), pullback(bd.SceneTerm(scene))
+
+    ours, reference = pullbacks(g, x)
+    basis = jax.vmap(bd.lie.hat)(jnp.eye(6))  # a pose's cotangent, on its tangents g·ê_i
+    on_tangents = [jnp.einsum("ab,ac,icb->i", ct, g, basis) for ct in (ours[0], reference[0])]
+    np.testing.assert_allclose(on_tangents[0], on_tangents[1], rtol=0, atol=1e-11)
+    scale = float(jnp.max(jnp.abs(reference[1])))
+    np.testing.assert_allclose(ours[1], reference[1], rtol=0, atol=1e-11 * scale)
