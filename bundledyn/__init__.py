@@ -3,6 +3,7 @@
 import importlib.metadata
 
 from . import checks, identify, lie, stress
+from ._coupled_effects import OnFullShape, OnFullShapePotential, on_full_shape
 from ._dynamics import (
     BundleGeometry,
     bundle_geometry,
@@ -99,7 +100,7 @@ from ._nonholonomic import (
 )
 from ._paths import models, scenes
 from ._precision import enable_x64
-from ._scene import Scene
+from ._scene import Scene, system_of_parts
 from ._scene_file import SceneFile, SceneFileError, load_scene, load_system
 from ._simulate import project_to_se3, simulate
 from ._solids import AbstractSolid, Box, Capsule, Ellipsoid
@@ -197,6 +198,8 @@ __all__ = [
     "Multibody",
     "NonholonomicSystem",
     "NonholonomicTerm",
+    "OnFullShape",
+    "OnFullShapePotential",
     "ParametricConstraints",
     "PfaffianConstraints",
     "PointContact",
@@ -274,6 +277,7 @@ __all__ = [
     "metric",
     "models",
     "nonholonomic_terms",
+    "on_full_shape",
     "parts_from_mjcf",
     "parts_from_urdf",
     "project_to_se3",
@@ -287,5 +291,6 @@ __all__ = [
     "state_from_mujoco",
     "state_to_mujoco",
     "stress",
+    "system_of_parts",
     "use_cpu_xla_flags",
 ]

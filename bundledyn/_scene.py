@@ -4,10 +4,12 @@ import equinox as eqx
 import jax.numpy as jnp
 import numpy as np
 
+from ._coupled_effects import on_full_shape
 from ._effects import AbstractEffect, Gravity, Kinematics, ShapeDamper, ShapeSpring
 from ._frames import AbstractFrame
 from ._modes import AbstractMode, FloatingBase, Free, Prescribed, PrescribedBase, mode_of
 from ._systems._base import AbstractSystem
+from ._systems._constrained import ConstrainedSystem, JointCoupling
 from ._systems._mujoco_import import FixedTendon, ModelParts, parts_from_mjcf, parts_from_urdf
 from ._systems._multibody import Multibody
 
@@ -98,7 +100,7 @@ class Scene(eqx.Module):
         A `Scene` of the `Multibody` with those effects (only those with a non-zero value).
         """
         parts = parts_from_mjcf(source, passive=passive)
-        system = Multibody.from_parts(parts, section=section)
+        system = system_of_parts(parts, section=section)
         return cls(system, model_effects(parts, passive=passive, gravity=gravity))
 
     @classmethod
@@ -119,7 +121,7 @@ class Scene(eqx.Module):
         A `Scene` of the `Multibody` with those effects.
         """
         parts = parts_from_urdf(path, passive=passive)
-        system = Multibody.from_parts(parts, section=section)
+        system = system_of_parts(parts, section=section)
         return cls(system, model_effects(parts, passive=passive, gravity=gravity))
 
     def forces(self, kin: Kinematics):
@@ -132,10 +134,24 @@ class Scene(eqx.Module):
         return F, Q
 
 
+def system_of_parts(parts: ModelParts, *, section=0) -> AbstractSystem:
+    """The system of an imported model's parts: its tree (`Multibody.from_parts`) and, if
+    the model couples joints (`<equality><joint>`), the tree on its free coordinates
+    (`ConstrainedSystem` with the couplings as a `JointCoupling`)."""
+    tree = Multibody.from_parts(parts, section=section)
+    if not parts.couplings:
+        return tree
+    return ConstrainedSystem(tree, JointCoupling(tree.shape_dim, parts.couplings))
+
+
 def model_effects(parts: ModelParts, *, passive: bool, gravity: bool) -> list[AbstractEffect]:
     """The effects an imported model asks for: its linear springs and dampers (`passive`)
-    and its `<option gravity>` (`gravity`; none if it is zero), as `Scene.from_mjcf` adds."""
+    and its `<option gravity>` (`gravity`; none if it is zero), as `Scene.from_mjcf` adds.
+    A model that couples joints has its springs and dampers on its full shape
+    (`on_full_shape`)."""
     effects = _passive_effects(parts) if passive else []
+    if parts.couplings:
+        effects = [on_full_shape(effect) for effect in effects]
     acceleration = np.asarray(parts.model.opt.gravity, dtype=float)
     if gravity and np.any(acceleration):
         size = float(np.linalg.norm(acceleration))

@@ -34,7 +34,7 @@ from ._nonholonomic import (
     TorusContact,
 )
 from ._paths import models
-from ._scene import Scene, model_effects
+from ._scene import Scene, model_effects, system_of_parts
 from ._simulate import simulate
 from ._solids import Box, Capsule, Ellipsoid
 from ._solver._lie_euler import LieEuler
@@ -289,7 +289,7 @@ def _model(t: _Table, kind, folder):
     read = parts_from_urdf if kind == "urdf" else parts_from_mjcf
     with t.building(kind):
         parts = read(source, passive=passive)
-        system = Multibody.from_parts(parts)
+        system = system_of_parts(parts)
     return system, None, tuple(model_effects(parts, passive=passive, gravity=gravity))
 
 

@@ -145,3 +145,95 @@ def test_the_written_out_reverse_pass_covers_a_coupled_chain():
     np.testing.assert_allclose(on_tangents[0], on_tangents[1], rtol=0, atol=1e-11)
     scale = float(jnp.max(jnp.abs(reference[1])))
     np.testing.assert_allclose(ours[1], reference[1], rtol=0, atol=1e-11 * scale)
+
+
+# --- MuJoCo's joint equalities ---------------------------------------------------------------
+
+# A hand on a free palm: two fingers' slides coupled linearly (with an offset), a thumb's
+# second hinge following its first by a quadratic (both with a reference position), and a
+# wrist hinge held at an angle; springs and dampers on every joint.
+GRIPPER = """<mujoco><option gravity="0 0 -9.81"/>
+<default><joint damping="0.3" stiffness="2"/></default><worldbody><body name="palm">
+<freejoint/><inertial pos="0 0 0" mass="1" diaginertia="0.1 0.12 0.08"/>
+<body name="left" pos="0.1 0.05 0"><joint name="left" type="slide" axis="0 1 0"/>
+<inertial pos="0.02 0 0" mass="0.1" diaginertia="0.01 0.01 0.01"/></body>
+<body name="right" pos="0.1 -0.05 0"><joint name="right" type="slide" axis="0 1 0" ref="0.01"/>
+<inertial pos="0.02 0 0" mass="0.1" diaginertia="0.01 0.01 0.01"/></body>
+<body name="thumb" pos="0 0.08 0"><joint name="thumb1" type="hinge" axis="0 0 1" ref="0.2"/>
+<inertial pos="0.03 0 0" mass="0.05" diaginertia="0.002 0.002 0.002"/>
+<body name="tip" pos="0.06 0 0"><joint name="thumb2" type="hinge" axis="0 1 0" ref="-0.3"/>
+<inertial pos="0.02 0 0" mass="0.03" diaginertia="0.001 0.001 0.001"/></body></body>
+<body name="wrist" pos="-0.1 0 0"><joint name="wrist" type="hinge" axis="1 0 0"/>
+<inertial pos="-0.03 0 0" mass="0.2" diaginertia="0.003 0.003 0.003"/></body>
+</body></worldbody><equality>
+<joint joint1="right" joint2="left" polycoef="0.002 -1 0 0 0"/>
+<joint joint1="thumb2" joint2="thumb1" polycoef="0.1 0.5 -0.8 0 0"/>
+<joint joint1="wrist" polycoef="0.3 0 0 0 0"/>
+</equality></mujoco>"""
+
+
+@pytest.fixture(scope="module")
+def gripper():
+    mujoco = pytest.importorskip("mujoco")
+    with pytest.warns(UserWarning, match="reference position"):
+        scene = bd.Scene.from_mjcf(GRIPPER, passive=True, gravity=True)
+    model = mujoco.MjModel.from_xml_string(GRIPPER)
+    return mujoco, model, scene
+
+
+def _mujoco_equalities(mujoco, model, tree, q, qdot):
+    """MuJoCo's equality rows at the full shape `q`: their violations and velocities, and
+    its passive force on the joints."""
+    state = bd.State(jnp.eye(4), q, jnp.zeros(6), qdot)
+    qpos, qvel = (np.asarray(x) for x in bd.state_to_mujoco(tree, state, qpos0=model.qpos0))
+    data = mujoco.MjData(model)
+    data.qpos[:], data.qvel[:] = qpos, qvel
+    mujoco.mj_forward(model, data)
+    rows = np.asarray(data.efc_type) == int(mujoco.mjtConstraint.mjCNSTR_EQUALITY)
+    return data.efc_pos[rows], data.efc_vel[rows], np.array(data.qfrc_passive[6:])
+
+
+def test_an_imported_models_joint_couplings_are_mujocos(gripper):
+    mujoco, model, scene = gripper
+    system = scene.system
+    assert isinstance(system, bd.ConstrainedSystem) and system.shape_dim == 2  # left, thumb1
+    coupling, tree = system.constraints, system.system
+    key = jax.random.PRNGKey(11)
+    for k in jax.random.split(key, 3):
+        ka, kb = jax.random.split(k)
+        p, pdot = 0.3 * jax.random.normal(ka, (2,)), jax.random.normal(kb, (2,))
+        q, qdot = jax.jvp(coupling, (p,), (pdot,))
+        violation, rate, _ = _mujoco_equalities(mujoco, model, tree, q, qdot)
+        # MuJoCo finds its equalities kept, in position and velocity
+        np.testing.assert_allclose(violation, 0.0, atol=1e-15)
+        np.testing.assert_allclose(rate, 0.0, atol=1e-14)
+        # off them, MuJoCo's violations are the coupling's residuals
+        off = q + 0.01 * jnp.arange(1.0, 6.0)
+        violation, _, _ = _mujoco_equalities(mujoco, model, tree, off, qdot)
+        np.testing.assert_allclose(violation, coupling.residual(off), rtol=1e-12, atol=1e-15)
+
+
+def test_an_imported_models_springs_and_dampers_act_on_its_full_shape(gripper):
+    mujoco, model, scene = gripper
+    coupling, tree = scene.system.constraints, scene.system.system
+    p, pdot = jnp.array([0.02, 0.4]), jnp.array([0.3, -1.2])
+    q, qdot = jax.jvp(coupling, (p,), (pdot,))
+    *_, passive = _mujoco_equalities(mujoco, model, tree, q, qdot)
+    # the shape force on the free coordinates is J^T of MuJoCo's on the joints
+    expected = jax.vjp(coupling, p)[1](jnp.asarray(passive))[0]
+    shape_effects = [e for e in scene.effects if not isinstance(e, bd.Gravity)]
+    kin = bd.Kinematics(0.0, jnp.eye(4), p, jnp.zeros(6), pdot)
+    ours = sum(e.generalized_force(scene.system, kin)[1] for e in shape_effects)
+    np.testing.assert_allclose(ours, expected, rtol=1e-12)
+
+
+def test_a_coupled_model_is_refused_as_a_bare_tree():
+    pytest.importorskip("mujoco")
+    # (warned of: the joints' springs left out, their reference positions)
+    with pytest.warns(UserWarning), pytest.raises(ValueError, match="ConstrainedSystem"):
+        bd.Multibody.from_mjcf(GRIPPER)
+    weld = GRIPPER.replace(
+        '<joint joint1="wrist" polycoef="0.3 0 0 0 0"/>', '<weld body1="wrist" body2="palm"/>'
+    )
+    with pytest.raises(ValueError, match="other than joint couplings"):
+        bd.Scene.from_mjcf(weld)

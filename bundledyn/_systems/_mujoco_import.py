@@ -30,7 +30,8 @@ resolves it) and build a `Multibody`:
 
 Not supported (`ValueError` naming the element and the fix): several bodies under the
 worldbody, a joint other than a free joint on the root, free joints below the root
-(MuJoCo itself rejects those), equality constraints, spatial tendons, the armature of
+(MuJoCo itself rejects those), equality constraints other than joint couplings, spatial
+tendons, the armature of
 tendons, bodies without mass that carry joints, and a root body without mass; when the
 passive forces are asked for, also nonlinear or plastic springs and dampers (MuJoCo's
 polynomial `stiffness`/`damping` terms, `springyield`) and tendon springs with a dead
@@ -74,6 +75,7 @@ __all__ = [
 
 # MuJoCo's mjtJoint values.
 _FREE, _BALL, _SLIDE, _HINGE = 0, 1, 2, 3
+_EQ_JOINT = 2  # mujoco.mjtEq.mjEQ_JOINT: a joint's position a polynomial of another's
 _WRAP_JOINT = 1  # mjtWrap.mjWRAP_JOINT: a fixed tendon's joint term
 _JOINT_NAMES = {_FREE: "free", _BALL: "ball", _SLIDE: "slide", _HINGE: "hinge"}
 _MINVAL = 1e-15  # mjMINVAL: MuJoCo's threshold for "no mass"
@@ -98,15 +100,18 @@ class FixedTendon(NamedTuple):
 
 
 class ModelParts(NamedTuple):
-    """What an imported model's tree is made of, ready for `Multibody`.
+    r"""What an imported model's tree is made of, ready for `Multibody`.
 
     **Fields:** `base` (the root `RigidBody`), `links` (the `Link`s in MuJoCo's body
     order), `names` (the bodies' MuJoCo names, base first), `model` (the compiled
     `mujoco.MjModel` they were read from), per shape coordinate the hinges' and slides'
     `armature` (rotor inertia), `damping`, `stiffness` and `spring_rest` (`springref` as a
     shape coordinate, $q = $ `qpos - qpos0`), zero for a ball joint's coordinates, the
-    `tendons` with a spring or a damper (`FixedTendon`), and `ignored` (what the import
-    left out, as the warning lists it).
+    `tendons` with a spring or a damper (`FixedTendon`), `ignored` (what the import
+    left out, as the warning lists it), and the active joint equalities as `couplings`
+    `(dependent, independent, polycoef)` of shape coordinates (`JointCoupling`'s; with
+    $q = $ `qpos - qpos0` MuJoCo's $y - y_0 = \sum_k a_k (x - x_0)^k$ reads
+    $q_y = \sum_k a_k q_x^k$; `independent` None where the joint is held).
     """
 
     base: RigidBody
@@ -119,6 +124,7 @@ class ModelParts(NamedTuple):
     spring_rest: np.ndarray
     tendons: tuple[FixedTendon, ...]
     ignored: tuple[str, ...]
+    couplings: tuple[tuple[int, int | None, np.ndarray], ...] = ()
 
 
 def _import_mujoco():
@@ -289,12 +295,14 @@ def _body_joint(model, b, joints):
 
 
 def _check_unsupported(model, passive: bool):
-    if model.neq > 0:
-        names = ", ".join(f"'{_name(model, 'equality', i)}'" for i in range(model.neq))
+    others = [i for i in range(model.neq) if int(model.eq_type[i]) != _EQ_JOINT]
+    if others:
+        names = ", ".join(f"'{_name(model, 'equality', i)}'" for i in others)
         raise ValueError(
-            f"the model has {model.neq} equality constraint(s) ({names}); bundledyn's "
-            "Multibody is a tree without closed loops or welds. Remove the <equality> "
-            "elements (model a weld by putting the bodies in one body, a loop by cutting it)."
+            f"the model has {len(others)} equality constraint(s) other than joint couplings "
+            f"({names}); bundledyn's Multibody is a tree without closed loops or welds. Remove "
+            "those <equality> elements (model a weld by putting the bodies in one body, a loop "
+            "by cutting it)."
         )
     spatial = [i for i in range(model.ntendon) if not _fixed_tendon(model, i)]
     if spatial:
@@ -464,6 +472,9 @@ def _ignored_elements(model, passive: bool):
         ignored.append("fluid forces (option density/viscosity)")
     if model.nflex:
         ignored.append(f"{model.nflex} flex(es)")
+    inactive = [i for i in range(model.neq) if not bool(model.eq_active0[i])]
+    if inactive:
+        ignored.append(f"inactive joint coupling(s) {_names(model, 'equality', inactive)}")
     return ignored
 
 
@@ -563,4 +574,23 @@ def parts_from_mjmodel(model, *, passive: bool = False) -> ModelParts:
         armature=np.array(armature, dtype=float), damping=np.array(damping, dtype=float),
         stiffness=np.array(stiffness, dtype=float), spring_rest=np.array(rest, dtype=float),
         tendons=_fixed_tendons(model, coordinate, len(armature)), ignored=tuple(ignored),
+        couplings=_couplings(model, coordinate),
     )  # fmt: skip
+
+
+def _couplings(model, coordinate: dict[int, int]):
+    """The active joint equalities as `(dependent, independent, polycoef)` of shape
+    coordinates (inactive ones are listed among the ignored elements)."""
+    couplings = []
+    for i in range(model.neq):
+        if int(model.eq_type[i]) != _EQ_JOINT or not bool(model.eq_active0[i]):
+            continue
+        dependent, independent = int(model.eq_obj1id[i]), int(model.eq_obj2id[i])
+        couplings.append(
+            (
+                coordinate[dependent],
+                None if independent < 0 else coordinate[independent],
+                np.array(model.eq_data[i][:5], dtype=float),
+            )
+        )
+    return tuple(couplings)

@@ -371,7 +371,9 @@ class Multibody(AbstractMultibody):
 
     @classmethod
     def from_parts(cls, parts: ModelParts, *, section=0) -> AbstractMultibody:
-        """The tree of an imported model's parts (`ModelParts`), its section at body `section`."""
+        """The tree of an imported model's parts (`ModelParts`), its section at body `section`:
+        the tree alone, without the model's joint couplings (`parts.couplings`, which
+        `bd.Scene.from_mjcf` and `bd.load_system` keep as a `ConstrainedSystem`)."""
         system = cls(parts.base, parts.links, names=parts.names, armature=parts.armature)
         if isinstance(section, str):
             if section not in parts.names:
@@ -403,7 +405,7 @@ class Multibody(AbstractMultibody):
         Its states relate to MuJoCo's `qpos`/`qvel` through `state_from_mujoco` and
         `state_to_mujoco`.
         """
-        return cls.from_parts(parts_from_mjcf(source), section=section)
+        return cls.from_parts(_uncoupled(parts_from_mjcf(source)), section=section)
 
     @classmethod
     def from_urdf(cls, path, *, section=0) -> AbstractMultibody:
@@ -532,3 +534,15 @@ class Resectioned(AbstractMultibody):
 
     def checked(self) -> "Resectioned":
         return Resectioned(self.tree.checked(), self.section)
+
+
+def _uncoupled(parts: ModelParts) -> ModelParts:
+    """`parts`, refused with a `ValueError` if the model couples joints: a tree alone would
+    move without its couplings."""
+    if parts.couplings:
+        raise ValueError(
+            f"the model couples joints ({len(parts.couplings)} <equality><joint>), which a "
+            "Multibody alone does not keep: use `bd.Scene.from_mjcf` or `bd.load_system`, "
+            "which give the tree with its couplings as a `ConstrainedSystem`."
+        )
+    return parts
