@@ -227,6 +227,23 @@ def test_an_imported_models_springs_and_dampers_act_on_its_full_shape(gripper):
     np.testing.assert_allclose(ours, expected, rtol=1e-12)
 
 
+def test_states_of_a_coupled_model_go_to_mujoco_and_back(gripper):
+    mujoco, model, scene = gripper
+    system = scene.system
+    g = bd.lie.se3_exp(jnp.array([0.3, -0.2, 0.5, 0.1, 0.2, -0.3]))
+    state = bd.State(g, jnp.array([0.02, 0.4]), jnp.arange(1.0, 7.0), jnp.array([0.3, -1.2]))
+    qpos, qvel = (np.asarray(x) for x in bd.state_to_mujoco(system, state, qpos0=model.qpos0))
+    data = mujoco.MjData(model)
+    data.qpos[:], data.qvel[:] = qpos, qvel
+    mujoco.mj_forward(model, data)
+    rows = np.asarray(data.efc_type) == int(mujoco.mjtConstraint.mjCNSTR_EQUALITY)
+    np.testing.assert_allclose(data.efc_pos[rows], 0.0, atol=1e-15)  # the couplings kept
+    np.testing.assert_allclose(data.efc_vel[rows], 0.0, atol=1e-14)
+    back = bd.state_from_mujoco(system, qpos, qvel, qpos0=model.qpos0)
+    for a, b in zip(jax.tree.leaves(back), jax.tree.leaves(state), strict=True):
+        np.testing.assert_allclose(a, b, rtol=0, atol=1e-14)
+
+
 def test_a_coupled_model_is_refused_as_a_bare_tree():
     pytest.importorskip("mujoco")
     # (warned of: the joints' springs left out, their reference positions)

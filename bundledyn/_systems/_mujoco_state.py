@@ -7,11 +7,13 @@ one per operation.
 """
 
 import equinox as eqx
+import jax
 import jax.numpy as jnp
 import numpy as np
 
 from .. import lie
 from .._state import State
+from ._constrained import ConstrainedSystem
 from ._multibody import AbstractMultibody
 
 __all__ = ["state_from_mujoco", "state_to_mujoco"]
@@ -69,7 +71,13 @@ def _screw_offsets(qpos0, lay, free_root, dtype):
 
 @eqx.filter_jit
 def state_from_mujoco(
-    system: AbstractMultibody, qpos, qvel, *, qpos0=None, free_root=True, root_pose=None
+    system: AbstractMultibody | ConstrainedSystem,
+    qpos,
+    qvel,
+    *,
+    qpos0=None,
+    free_root=True,
+    root_pose=None,
 ) -> State:
     r"""bundledyn's `State` $(g, q, \xi, \dot q)$ from MuJoCo's `qpos`, `qvel`.
 
@@ -88,7 +96,10 @@ def state_from_mujoco(
 
     **Arguments:**
 
-    - `system`: a tree imported by `Multibody.from_mjcf` or `from_urdf`; any section body.
+    - `system`: a tree imported by `Multibody.from_mjcf` or `from_urdf`, any section body;
+      or an imported model with joint couplings (`ConstrainedSystem`), whose state holds
+      the free coordinates (read off `qpos`, `qvel`; MuJoCo keeps the couplings only
+      approximately, bundledyn's state exactly).
     - `qpos`, `qvel`: MuJoCo's generalized positions and velocities, shapes `(nq,)`, `(nv,)`.
     - `qpos0`: MuJoCo's `model.qpos0` (same layout as `qpos`), for joints with a non-zero
       `ref`; default: no offsets.
@@ -102,6 +113,12 @@ def state_from_mujoco(
 
     The `State`.
     """
+    if isinstance(system, ConstrainedSystem):
+        full = state_from_mujoco(
+            _tree(system), qpos, qvel, qpos0=qpos0, free_root=free_root, root_pose=root_pose
+        )
+        free = system.constraints.free_coordinates
+        return State(full.g, free(full.q), full.xi, free(full.qdot))
     qpos = jnp.asarray(qpos)
     qvel = jnp.asarray(qvel)
     dtype = jnp.result_type(qpos.dtype, qvel.dtype, float)
@@ -134,7 +151,9 @@ def state_from_mujoco(
 
 
 @eqx.filter_jit
-def state_to_mujoco(system: AbstractMultibody, state: State, *, qpos0=None, free_root=True):
+def state_to_mujoco(
+    system: AbstractMultibody | ConstrainedSystem, state: State, *, qpos0=None, free_root=True
+):
     r"""MuJoCo's `qpos`, `qvel` from bundledyn's `State` $(g, q, \xi, \dot q)$.
 
     The inverse of `state_from_mujoco` (same conventions): the free joint gets the root's
@@ -144,7 +163,9 @@ def state_to_mujoco(system: AbstractMultibody, state: State, *, qpos0=None, free
 
     **Arguments:**
 
-    - `system`: the imported tree; `state`: its `State`.
+    - `system`: the imported tree, or an imported model with joint couplings
+      (`ConstrainedSystem`: the coupled joints' `qpos`, `qvel` from its couplings);
+      `state`: its `State`.
     - `qpos0`: MuJoCo's `model.qpos0` (same layout as `qpos`), for joints with a non-zero
       `ref`; default: no offsets.
     - `free_root`: whether to write the root's free joint (7/6 entries) first. With
@@ -155,6 +176,10 @@ def state_to_mujoco(system: AbstractMultibody, state: State, *, qpos0=None, free
 
     `(qpos, qvel)`, shapes `(nq,)`, `(nv,)`.
     """
+    if isinstance(system, ConstrainedSystem):
+        q, qdot = jax.jvp(system.constraints, (state.q,), (state.qdot,))
+        full = State(state.g, q, state.xi, qdot)
+        return state_to_mujoco(_tree(system), full, qpos0=qpos0, free_root=free_root)
     g, q, xi, qdot = state.g, state.q, state.xi, state.qdot
     dtype = g.dtype
     d = system.shape_dim
@@ -182,3 +207,13 @@ def state_to_mujoco(system: AbstractMultibody, state: State, *, qpos0=None, free
     qpos = qpos.at[lay["ball_pos"]].set(lie.quaternion_from_rotation_vector(phi))
     qvel = qvel.at[lay["ball_vel"]].set(omega)
     return qpos, qvel
+
+
+def _tree(system: ConstrainedSystem) -> AbstractMultibody:
+    """The imported tree of a model with joint couplings."""
+    if not isinstance(system.system, AbstractMultibody):
+        raise ValueError(
+            "MuJoCo's qpos and qvel describe an imported tree; this `ConstrainedSystem` "
+            f"couples the coordinates of a {type(system.system).__name__}."
+        )
+    return system.system
