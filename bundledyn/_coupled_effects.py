@@ -8,7 +8,6 @@ $\Pi(t, g, \Phi(p))$, whose forces are those.
 """
 
 import jax
-import jax.numpy as jnp
 
 from ._effects import AbstractEffect, AbstractPotential, Kinematics
 from ._systems._constrained import ConstrainedSystem
@@ -53,11 +52,11 @@ class OnFullShape(AbstractEffect):
 
     def generalized_force(self, system, kin):
         system = _constrained(system, type(self).__name__)
-        q, qdot = jax.jvp(system.constraints, (kin.q,), (kin.qdot,))
-        full = Kinematics(kin.t, kin.g, q, kin.xi, qdot)
+        q, along = jax.linearize(system.constraints, kin.q)  # J, once for both ways
+        full = Kinematics(kin.t, kin.g, q, kin.xi, along(kin.qdot))
         F, Q = self.effect.generalized_force(system.system, full)
-        (Q_p,) = jax.vjp(system.constraints, kin.q)[1](Q)
-        return F, jnp.asarray(Q_p)
+        (Q_p,) = jax.linear_transpose(along, kin.q)(Q)
+        return F, Q_p
 
 
 def on_full_shape(effect: AbstractEffect) -> AbstractEffect:

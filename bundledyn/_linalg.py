@@ -110,11 +110,19 @@ def _fused_einsum_jvp(letters, order, n_out, primals, tangents):
     # which made the vector field's VJP far dearer.
     out = _fused_einsum(letters, order, n_out, *primals)
     parts = [
-        jnp.sum(_broadcast_product(letters, order, n_out, (*primals[:i], t, *primals[i + 1 :])), -1)
+        _summed(_broadcast_product(letters, order, n_out, (*primals[:i], t, *primals[i + 1 :])))
         for i, t in enumerate(tangents)
         if not isinstance(t, jax.custom_derivatives.SymbolicZero)
     ]
     return out, functools.reduce(operator.add, parts) if parts else jnp.zeros_like(out)
+
+
+def _summed(terms):
+    """`terms` summed over its last axis; zeros, not a sum, over an empty one (an empty
+    contraction: its transpose under `vmap` would broadcast to the wrong rank)."""
+    if terms.shape[-1] == 0:
+        return jnp.zeros(terms.shape[:-1], terms.dtype)
+    return jnp.sum(terms, -1)
 
 
 def dot(a, b) -> Array:

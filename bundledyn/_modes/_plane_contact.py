@@ -109,7 +109,7 @@ class AbstractPlaneContactMode(AbstractFreeMotionMode):
         r"""$\xi = H e$: the body twist of the characteristics $e = (\omega, \sigma)$."""
         c, S = self._contact_frame(n)
         omega, sigma = e[:3], e[3:]
-        return jnp.concatenate([omega, jnp.cross(c, omega) + _along(S, sigma)])
+        return jnp.concatenate([omega, jnp.cross(c, omega) + matmul(S, sigma)])
 
     def state(self, g, omega, sliding=None) -> State:
         r"""The `State` of a body at orientation and position `g`, placed on the plane, with
@@ -173,7 +173,7 @@ class AbstractPlaneContactMode(AbstractFreeMotionMode):
             [[jnp.eye(3, dtype=c.dtype), jnp.zeros((3, s), c.dtype)], [lie.so3_hat(c), S]]
         )
         H_dot_e = jnp.concatenate(
-            [jnp.zeros_like(c), jnp.cross(c_dot, omega) + _along(S_dot, sigma)]
+            [jnp.zeros_like(c), jnp.cross(c_dot, omega) + matmul(S_dot, sigma)]
         )
         geo = bundle_geometry(scene.system, q, xi, qdot)
         F, _ = scene.forces(Kinematics(t, g, q, xi, qdot))
@@ -196,18 +196,10 @@ class AbstractPlaneContactMode(AbstractFreeMotionMode):
         c, S = self._contact_frame(matmul(R.T, self.normal))
         u = xi[3:] + jnp.cross(xi[:3], c)
         height = jnp.dot(self.normal, g[:3, 3] + matmul(R, c)) - self.offset
-        return jnp.concatenate([u - _along(S, matmul(S.T, u)), height[None]])
+        return jnp.concatenate([u - matmul(S, matmul(S.T, u)), height[None]])
 
     def window_chart(self, scene: SceneParts):
         raise ValueError(
             f"identification does not fit scenes on a plane contact (`{type(self).__name__}`): "
             "its window states would have to keep the contact's constraints."
         )
-
-
-def _along(S, sigma):
-    r"""$S\sigma$, `(3,)`; zero for no sliding directions (a `(3, 0)` $S$), without a product
-    over an empty axis."""
-    if S.shape[1] == 0:
-        return jnp.zeros(S.shape[:1], S.dtype)
-    return matmul(S, sigma)
