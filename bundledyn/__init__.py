@@ -81,6 +81,7 @@ from ._nonholonomic import (
     RollingDisc,
     SphereContact,
     TorusContact,
+    WhippleBicycle,
     acceleration_energy,
     appell_accelerations,
     bilinear_covariants,
@@ -97,6 +98,7 @@ from ._nonholonomic import (
     maggi_equations,
     mechanical_energy,
     nonholonomic_terms,
+    stability_boundary,
 )
 from ._paths import models, scenes
 from ._precision import enable_x64
@@ -216,6 +218,7 @@ __all__ = [
     "RigidBody",
     "RigidBodyMode",
     "RollingDisc",
+    "WhippleBicycle",
     "RollingMode",
     "Scene",
     "SceneFile",
@@ -263,6 +266,7 @@ __all__ = [
     "kinetic_energy",
     "lagrange_binomials",
     "linearization",
+    "stability_boundary",
     "levi_civita_term",
     "lie",
     "load_scene",

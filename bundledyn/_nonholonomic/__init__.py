@@ -4,11 +4,12 @@ A system given by its kinetic energy $T(q, \dot q, t)$, its active forces and ki
 constraints, either as Pfaffian rows (76) or in the parametric form (77); Maggi's equations
 (82) and Appell's (§60) assembled by autodiff and solved for the rates of the kinematic
 characteristics; the split of Maggi's equations into nonholonomic and holonomic terms
-((84)–(93)); a diffrax term on $(q, e)$; the Chaplygin sleigh and the vertical rolling disc; the surfaces a rigid body rolls on a plane
+((84)–(93)); a diffrax term on $(q, e)$; the Chaplygin sleigh, the vertical rolling disc and the Whipple bicycle; the surfaces a rigid body rolls on a plane
 with (`RollingMode`).
 """
 
 from ._appell import acceleration_energy, appell_accelerations
+from ._bicycle import Placement, WhippleBicycle
 from ._constraints import (
     AbstractKinematicConstraints,
     constrained_accelerations,
@@ -26,7 +27,7 @@ from ._contact import (
 )
 from ._covariants import bilinear_covariants
 from ._equations import AbstractNonholonomicEquations, AppellEquations, MaggiEquations
-from ._linearize import linearization
+from ._linearize import linearization, stability_boundary
 from ._maggi import (
     characteristic_forces,
     lagrange_binomials,
@@ -60,6 +61,8 @@ __all__ = [
     "RollingDisc",
     "SphereContact",
     "TorusContact",
+    "WhippleBicycle",
+    "Placement",
     "acceleration_energy",
     "appell_accelerations",
     "bilinear_covariants",
@@ -76,4 +79,5 @@ __all__ = [
     "maggi_equations",
     "mechanical_energy",
     "nonholonomic_terms",
+    "stability_boundary",
 ]

@@ -1,12 +1,17 @@
 r"""The linearization of a nonholonomic system's equations about a state, by autodiff."""
 
+import functools
+from collections.abc import Callable
+from typing import Any
+
+import equinox as eqx
 import jax
 import jax.numpy as jnp
 from jaxtyping import Array, Float
 
 from ._term import NonholonomicTerm
 
-__all__ = ["linearization"]
+__all__ = ["linearization", "stability_boundary"]
 
 
 def linearization(
@@ -44,3 +49,67 @@ def linearization(
         return jnp.concatenate([q_dot, e_dot])
 
     return jax.jacfwd(field)(jnp.concatenate([q, e]))
+
+
+def stability_boundary(
+    growth_rate: Callable[[Float[Array, ""], Any], Float[Array, ""]],
+    bracket: tuple[float, float],
+    args: Any = None,
+    *,
+    halvings: int = 64,
+) -> Float[Array, ""]:
+    r"""Where a steady motion changes stability: the root $v^*$ of a growth rate, $\sigma(v^*, p) = 0$.
+
+    Found by bisection of `bracket`, whose ends $\sigma$ must have of opposite signs (it
+    raises otherwise, `equinox.error_if`); bisection needs no derivative of $\sigma$, which
+    is itself a derivative of the equations (the spectral abscissa of a `linearization`).
+    The root is differentiable with respect to `args` by the implicit function theorem,
+    $\partial v^* = -\sigma_v^{-1}\,\partial_p\sigma\,\partial p$: `jax.grad` of a critical
+    speed with respect to a model's parameters.
+
+    **Arguments:**
+
+    - `growth_rate`: `growth_rate(v, args) -> scalar`, e.g. the spectral abscissa
+      `lambda v, bike: bike.spectral_abscissa(v)` (`WhippleBicycle`).
+    - `bracket`: `(lower, upper)`, values of $v$ on either side of a single root.
+    - `args`: what `growth_rate` depends on besides $v$ (a model: its array leaves are
+      differentiated).
+    - `halvings`: the number of bisections (static); 64 reach the rounding of $v$ from any
+      bracket of width below $10^4$.
+
+    **Returns:**
+
+    $v^*$.
+    """
+    lower, upper = (jnp.asarray(end, dtype=float) for end in bracket)
+    return _boundary(growth_rate, halvings, lower, upper, args)
+
+
+@functools.partial(jax.custom_jvp, nondiff_argnums=(0, 1))
+def _boundary(growth_rate, halvings, lower, upper, args):
+    at_lower, at_upper = growth_rate(lower, args), growth_rate(upper, args)
+    rising = at_upper > at_lower
+    lower = eqx.error_if(
+        lower,
+        jnp.sign(at_lower) == jnp.sign(at_upper),
+        "stability_boundary: the growth rate has the same sign at both ends of the bracket; "
+        "give a bracket with the root inside.",
+    )
+
+    def halve(_, interval):
+        low, high = interval
+        middle = 0.5 * (low + high)
+        past = (growth_rate(middle, args) > 0) == rising
+        return jnp.where(past, low, middle), jnp.where(past, middle, high)
+
+    low, high = jax.lax.fori_loop(0, halvings, halve, (lower, upper))
+    return 0.5 * (low + high)
+
+
+@_boundary.defjvp
+def _boundary_jvp(growth_rate, halvings, primals, tangents):
+    lower, upper, args = primals
+    root = _boundary(growth_rate, halvings, lower, upper, args)
+    slope = jax.grad(growth_rate)(root, args)
+    _, moved = jax.jvp(lambda p: growth_rate(root, p), (args,), (tangents[2],))
+    return root, -moved / slope
