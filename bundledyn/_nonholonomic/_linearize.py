@@ -110,6 +110,9 @@ def _boundary(growth_rate, halvings, lower, upper, args):
 def _boundary_jvp(growth_rate, halvings, primals, tangents):
     lower, upper, args = primals
     root = _boundary(growth_rate, halvings, lower, upper, args)
-    slope = jax.grad(growth_rate)(root, args)
-    _, moved = jax.jvp(lambda p: growth_rate(root, p), (args,), (tangents[2],))
+    # Both derivatives in forward mode (v is a scalar): the growth rate is already a
+    # derivative of the equations, and reverse mode over it compiles far larger programs.
+    along = lambda dv, dargs: jax.jvp(growth_rate, (root, args), (dv, dargs))[1]
+    slope = along(jnp.ones_like(root), jax.tree.map(jnp.zeros_like, tangents[2]))
+    moved = along(jnp.zeros_like(root), tangents[2])
     return root, -moved / slope
