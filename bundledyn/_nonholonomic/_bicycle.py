@@ -270,12 +270,9 @@ class WhippleBicycle(AbstractNonholonomicSystem):
         The $z$ coordinate (down) of the front wheel's lowest point, the rear wheel touching
         the ground.
         """
-        lean = _about_x(roll)
-        frame = lean @ _about_y(pitch)
-        turn, wheel, _ = self._front_assembly(steer)
-        rear_centre = lean @ jnp.stack([0.0, 0.0, -self.rear_wheel_radius])
-        axle = frame @ turn[:, 1]
-        return _wheel_contact(rear_centre + frame @ wheel, axle, self.front_wheel_radius)[2]
+        zero = jnp.zeros_like(roll)
+        q = jnp.stack([zero, zero, zero, roll, pitch, steer, zero, zero])
+        return self.placement(q).contacts[1, 2]
 
     def pitch(self, roll, steer) -> Float[Array, ""]:
         r"""The rear frame's pitch $\theta_B(\phi, \delta)$ at which both wheels touch the ground.
