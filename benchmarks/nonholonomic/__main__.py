@@ -1,0 +1,3 @@
+from benchmarks.nonholonomic.cli import main
+
+raise SystemExit(main())
