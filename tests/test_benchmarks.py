@@ -12,7 +12,9 @@ from benchmarks import accuracy_cost
 from benchmarks._output import RESULTS
 from benchmarks.accuracy_cost.sweep import default_solver
 
-BENCHMARKS = {"accuracy_cost", "speed", "speed_gpu", "family", "identification", "stress"}
+BENCHMARKS = {
+    "accuracy_cost", "speed", "speed_gpu", "family", "identification", "stress", "nonholonomic"
+}  # fmt: skip
 
 
 def test_accuracy_cost_quick_writes_its_report(tmp_path):

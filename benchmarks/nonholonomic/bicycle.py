@@ -17,7 +17,7 @@ import numpy as np
 from benchmarks.nonholonomic.peer import KaneModel
 
 NAME = "Whipple bicycle"
-SPEEDS = (3.0, 4.6, 6.0)  # forward speeds (m/s): below, inside and above the self-stable band
+SPEEDS = (4.0, 5.0, 6.5)  # forward speeds (m/s): below, inside and above the self-stable band
 
 
 def _parameters():
