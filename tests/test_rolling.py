@@ -355,6 +355,8 @@ def test_rolling_scenes_refuse_what_they_cannot_integrate():
         )
     with pytest.raises(ValueError, match="AbstractContactSurface"):
         bd.RollingMode(0.1)
+    with pytest.raises(ValueError, match="AppellEquations"):
+        bd.RollingMode(bd.SphereContact(0.1), equations="appell")
     with pytest.raises(ValueError, match="positive"):
         bd.SphereContact(-0.1)
 

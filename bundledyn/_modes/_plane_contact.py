@@ -12,7 +12,10 @@ Maggi's equations (82) with the body twist as the quasi-velocities whose kinetic
 (2.7) gives, $H^T\big(I_r\dot\xi + \operatorname{ad}^*_\xi I_r\xi - F\big) = 0$ with
 $\dot\xi = \dot H e + H\dot e$, are solved for the characteristics' rates:
 
-$$ \dot e = (H^T I_r H)^{-1} H^T\big(F - \operatorname{ad}^*_\xi I_r\xi - I_r\dot H e\big). $$
+$$ \dot e = (H^T I_r H)^{-1} H^T\big(F - \operatorname{ad}^*_\xi I_r\xi - I_r\dot H e\big) $$
+
+(`maggi_body_rates`), or Appell's equations from the energy of the material points'
+accelerations (`appell_body_rates`), as the mode's `equations` say.
 
 $c$ and $S$ depend on the orientation through the plane's normal seen from the body,
 $n = R^T n_{\rm world}$, which turns as $\dot n = n\times\omega$; $\dot H e$ is a JVP
@@ -30,10 +33,11 @@ import jax.numpy as jnp
 from jaxtyping import Array, Float
 
 from .. import lie
-from .._dynamics import bundle_geometry, coadjoint_term
+from .._dynamics import bundle_geometry
 from .._effects import Kinematics
-from .._linalg import matmul, spd_solve
+from .._linalg import matmul
 from .._nonholonomic._contact import AbstractContactSurface
+from .._nonholonomic._equations import AbstractNonholonomicEquations
 from .._state import State
 from .._validation import check_shape
 from ._base import AbstractFreeMotionMode, SceneParts
@@ -46,15 +50,21 @@ __all__ = ["AbstractPlaneContactMode", "check_contact"]
 _CONSISTENCY = 1e-8
 
 
-def check_contact(owner: str, surface, offset) -> None:
-    """Refuse, with a `ValueError`, a contact surface that is not an `AbstractContactSurface`
-    or a plane offset that is not a scalar."""
+def check_contact(owner: str, surface, offset, equations) -> None:
+    """Refuse, with a `ValueError`, a contact surface that is not an `AbstractContactSurface`,
+    a plane offset that is not a scalar, or equations that are not an
+    `AbstractNonholonomicEquations`."""
     if not isinstance(surface, AbstractContactSurface):
         raise ValueError(
             f"`{owner}.surface` must be an AbstractContactSurface, e.g. "
             f"`bd.SphereContact(radius)`; got {type(surface).__name__}."
         )
     check_shape(f"{owner}.offset", offset, ())
+    if not isinstance(equations, AbstractNonholonomicEquations):
+        raise ValueError(
+            f"`{owner}.equations` must be `bd.MaggiEquations()` or `bd.AppellEquations()` (an "
+            f"AbstractNonholonomicEquations); got {type(equations).__name__}."
+        )
 
 
 class AbstractPlaneContactMode(AbstractFreeMotionMode):
@@ -66,12 +76,15 @@ class AbstractPlaneContactMode(AbstractFreeMotionMode):
     the contact point's speeds along the sliding directions. The plane's reaction is ideal
     and does no work, so the energy of a scene with conservative effects is conserved.
 
-    Subclasses give `sliding_directions`; the plane is `normal`, `offset`.
+    Subclasses give `sliding_directions`; the plane is `normal`, `offset`; `equations`
+    (Maggi's or Appell's) give the characteristics' rates from $H$, $\dot He$ and the
+    body's inertia and wrench (`AbstractNonholonomicEquations.body_rates`).
     """
 
     surface: eqx.AbstractVar[AbstractContactSurface]
     normal: eqx.AbstractVar[Float[Array, "3"]]
     offset: eqx.AbstractVar[Float[Array, ""]]
+    equations: eqx.AbstractVar[AbstractNonholonomicEquations]
 
     @abc.abstractmethod
     def sliding_directions(self, n: Float[Array, "3"]) -> Float[Array, "3 s"]:
@@ -175,11 +188,9 @@ class AbstractPlaneContactMode(AbstractFreeMotionMode):
         H_dot_e = jnp.concatenate(
             [jnp.zeros_like(c), jnp.cross(c_dot, omega) + matmul(S_dot, sigma)]
         )
-        geo = bundle_geometry(scene.system, q, xi, qdot)
+        inertia = bundle_geometry(scene.system, q, xi, qdot).I_r
         F, _ = scene.forces(Kinematics(t, g, q, xi, qdot))
-        rhs = F - coadjoint_term(geo) - matmul(geo.I_r, H_dot_e)
-        e_dot = spd_solve(H.T @ geo.I_r @ H, matmul(H.T, rhs))
-        return xi, e_dot
+        return xi, self.equations.body_rates(H, H_dot_e, xi, inertia, F)
 
     def kinematics(self, scene: SceneParts, t, y):
         g, q, xi, qdot = self.unpack(scene, t, y)

@@ -1,4 +1,4 @@
-r"""A rigid body on a skate's blade (a knife edge) on a plane: Maggi's equations (82) on SE(3).
+r"""A rigid body on a skate's blade (a knife edge) on a plane: Maggi's (82) or Appell's equations (§60) on SE(3).
 
 The blade stands in a plane of the body, the blade's plane, with unit normal $k$ (body
 frame). Its contact point cannot move across the blade, only along it: along
@@ -14,6 +14,7 @@ import jax.numpy as jnp
 from jaxtyping import Array, Float
 
 from .._nonholonomic._contact import AbstractContactSurface, unit_axis
+from .._nonholonomic._equations import AbstractNonholonomicEquations, MaggiEquations
 from ._plane_contact import AbstractPlaneContactMode, check_contact
 
 __all__ = ["SkatingMode"]
@@ -51,21 +52,33 @@ class SkatingMode(AbstractPlaneContactMode):
       default $(0, 1, 0)$: a blade along the body's $x$ axis.
     - `normal`: the plane's upward normal in the world frame; default $(0, 0, 1)$.
     - `offset`: the plane is $\{x : n\cdot x = \text{offset}\}$; default 0.
+    - `equations`: `MaggiEquations()` (default) or `AppellEquations()`, which give the same
+      motion by two assemblies (`maggi_body_rates`, `appell_body_rates`).
     """
 
     surface: AbstractContactSurface
     blade_axis: Float[Array, "3"]
     normal: Float[Array, "3"]
     offset: Float[Array, ""]
+    equations: AbstractNonholonomicEquations
 
-    def __init__(self, surface, *, blade_axis=(0.0, 1.0, 0.0), normal=(0.0, 0.0, 1.0), offset=0.0):
+    def __init__(
+        self,
+        surface,
+        *,
+        blade_axis=(0.0, 1.0, 0.0),
+        normal=(0.0, 0.0, 1.0),
+        offset=0.0,
+        equations=None,
+    ):
         self.surface = surface
         self.blade_axis = unit_axis("SkatingMode", blade_axis, "blade_axis")
         self.normal = unit_axis("SkatingMode", normal, "normal")
         self.offset = jnp.asarray(offset, dtype=float)
+        self.equations = MaggiEquations() if equations is None else equations
 
     def __check_init__(self):
-        check_contact("SkatingMode", self.surface, self.offset)
+        check_contact("SkatingMode", self.surface, self.offset, self.equations)
 
     def sliding_directions(self, n):
         r"""The blade's direction on the plane, $t = k\times n/|k\times n|$, as a `(3, 1)`

@@ -8,7 +8,12 @@ characteristics; the split of Maggi's equations into nonholonomic and holonomic 
 with (`RollingMode`).
 """
 
-from ._appell import acceleration_energy, appell_accelerations
+from ._appell import (
+    acceleration_energy,
+    appell_accelerations,
+    appell_body_rates,
+    body_acceleration_energy,
+)
 from ._bicycle import Placement, WhippleBicycle
 from ._constraints import (
     AbstractKinematicConstraints,
@@ -32,6 +37,7 @@ from ._maggi import (
     characteristic_forces,
     lagrange_binomials,
     maggi_accelerations,
+    maggi_body_rates,
     maggi_equations,
 )
 from ._mjcf_contact import contact_surface_from_mjcf
@@ -65,6 +71,8 @@ __all__ = [
     "Placement",
     "acceleration_energy",
     "appell_accelerations",
+    "appell_body_rates",
+    "body_acceleration_energy",
     "bilinear_covariants",
     "characteristic_forces",
     "constrained_accelerations",
@@ -76,6 +84,7 @@ __all__ = [
     "lagrange_binomials",
     "linearization",
     "maggi_accelerations",
+    "maggi_body_rates",
     "maggi_equations",
     "mechanical_energy",
     "nonholonomic_terms",

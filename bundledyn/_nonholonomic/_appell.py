@@ -4,6 +4,7 @@ import jax
 import jax.numpy as jnp
 from jaxtyping import Array, Float
 
+from .. import lie
 from .._linalg import spd_solve
 from ._constraints import as_time, motion
 from ._system import AbstractNonholonomicSystem
@@ -95,4 +96,73 @@ def appell_accelerations(
     zero = jnp.zeros_like(e)
     forces = eta.T @ system.generalized_forces(q, qdot, t)
     gradient = jax.grad(energy)(zero) - forces
+    return spd_solve(jax.hessian(energy)(zero), -gradient)
+
+
+def _pseudo_inertia(inertia):
+    r"""The pseudo-inertia $P = \int\bar x\bar x^T dm$ ($\bar x = (x, 1)$) of a rigid body from
+    its spatial inertia about the origin: $\int xx^T dm = \tfrac12\operatorname{tr}(I_o)1 - I_o$,
+    the first moment $mc$ from the block $m\tilde c$, the mass."""
+    rotational, mass = inertia[:3, :3], inertia[3, 3]
+    moment = lie.so3_vee(inertia[:3, 3:])
+    second = 0.5 * jnp.trace(rotational) * jnp.eye(3, dtype=inertia.dtype) - rotational
+    top = jnp.concatenate([second, moment[:, None]], axis=1)
+    return jnp.concatenate([top, jnp.concatenate([moment, mass[None]])[None]], axis=0)
+
+
+def body_acceleration_energy(
+    H: Float[Array, "6 nu"],
+    H_dot_e: Float[Array, "6"],
+    xi: Float[Array, "6"],
+    inertia: Float[Array, "6 6"],
+    edot: Float[Array, " nu"],
+) -> Float[Array, ""]:
+    r"""The energy of accelerations $S = \tfrac12\int|a|^2dm$ (§60) of a rigid body whose body twist is $\xi = He$.
+
+    From the material points' accelerations, not from the Euler equations: with the pose
+    $g$ and $\dot g = g\hat\xi$, $\ddot g = g(\hat\xi\hat\xi + \hat{\dot\xi})$, the point at
+    $\bar x = (x, 1)$ of the body accelerates by $R B\bar x$ with $B$ the top three rows of
+    $\hat\xi\hat\xi + \hat{\dot\xi}$, so $S = \tfrac12\operatorname{tr}(BPB^T)$ with the
+    pseudo-inertia $P = \int\bar x\bar x^T dm$; here $\dot\xi = H\dot e + \dot He$.
+
+    **Arguments:**
+
+    - `H`, `H_dot_e`, `xi`, `inertia`: as `maggi_body_rates`.
+    - `edot`: the characteristics' rates, shape `(nu,)`.
+
+    **Returns:**
+
+    $S$, a scalar, quadratic in `edot`.
+    """
+    twist = lie.se3_hat(xi)
+    B = (twist @ twist + lie.se3_hat(H @ edot + H_dot_e))[:3]
+    return 0.5 * jnp.trace(B @ _pseudo_inertia(inertia) @ B.T)
+
+
+def appell_body_rates(
+    H: Float[Array, "6 nu"],
+    H_dot_e: Float[Array, "6"],
+    xi: Float[Array, "6"],
+    inertia: Float[Array, "6 6"],
+    wrench: Float[Array, "6"],
+) -> Float[Array, " nu"]:
+    r"""Appell's equations $\partial S/\partial\dot e_\alpha = \Phi_\alpha$ (§60) for a rigid body whose body twist is $\xi = He$.
+
+    $S$ is `body_acceleration_energy`, quadratic in $\dot e$: its gradient at $\dot e = 0$
+    and its Hessian by autodiff give $\dot e$ by Cholesky; the active forces along the
+    characteristics are $\Phi = H^TF$ (81), the virtual work of the wrench $F$ on
+    $\delta\xi = H\delta\varepsilon$. The same $\dot e$ as `maggi_body_rates`.
+
+    **Arguments:** as `maggi_body_rates`.
+
+    **Returns:**
+
+    $\dot e$, shape `(nu,)`.
+    """
+
+    def energy(edot):
+        return body_acceleration_energy(H, H_dot_e, xi, inertia, edot)
+
+    zero = jnp.zeros(H.shape[1], H.dtype)
+    gradient = jax.grad(energy)(zero) - H.T @ wrench
     return spd_solve(jax.hessian(energy)(zero), -gradient)

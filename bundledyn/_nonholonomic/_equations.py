@@ -5,16 +5,19 @@ import abc
 import equinox as eqx
 from jaxtyping import Array, Float
 
-from ._appell import appell_accelerations
-from ._maggi import maggi_accelerations
+from ._appell import appell_accelerations, appell_body_rates
+from ._maggi import maggi_accelerations, maggi_body_rates
 from ._system import AbstractNonholonomicSystem
 
 
 class AbstractNonholonomicEquations(eqx.Module):
-    r"""Equations of motion that give the rates $\dot e$ of the characteristics at $(q, e, t)$.
+    r"""Equations of motion that give the rates $\dot e$ of the characteristics.
 
-    `NonholonomicTerm` takes one: `MaggiEquations()` (the default) or `AppellEquations()`.
-    Subclass it to give your own (a closed form, a faster assembly) and check it against them.
+    Two settings: a system in Lagrangian coordinates at $(q, e, t)$ (`accelerations`;
+    `NonholonomicTerm` takes the equations), and a rigid body on the bundle whose body twist
+    is $\xi = He$ (`body_rates`; `RollingMode` and `SkatingMode` take them).
+    `MaggiEquations()` (the default) or `AppellEquations()`; subclass it to give your own (a
+    closed form, a faster assembly) and check it against them.
     """
 
     @abc.abstractmethod
@@ -34,16 +37,46 @@ class AbstractNonholonomicEquations(eqx.Module):
         $\dot e$, shape `(nu,)`.
         """
 
+    @abc.abstractmethod
+    def body_rates(
+        self,
+        H: Float[Array, "6 nu"],
+        H_dot_e: Float[Array, "6"],
+        xi: Float[Array, "6"],
+        inertia: Float[Array, "6 6"],
+        wrench: Float[Array, "6"],
+    ) -> Float[Array, " nu"]:
+        r"""The rates $\dot e$ of a rigid body whose body twist is $\xi = He$.
+
+        **Arguments:**
+
+        - `H`: the body twist per unit characteristic, shape `(6, nu)`.
+        - `H_dot_e`: $\dot He$, shape `(6,)`.
+        - `xi`: the body twist $(\omega, v)$, shape `(6,)`.
+        - `inertia`: the spatial inertia about the body's origin, shape `(6, 6)`.
+        - `wrench`: the body wrench $(\tau, f)$ of the effects, shape `(6,)`.
+
+        **Returns:**
+
+        $\dot e$, shape `(nu,)`.
+        """
+
 
 class MaggiEquations(AbstractNonholonomicEquations):
-    r"""Maggi's equations (82), $\sum_h \eta_{h\alpha}\big(\frac{d}{dt}\frac{\partial T}{\partial\dot q_h} - \frac{\partial T}{\partial q_h}\big) = \Phi_\alpha$ (`maggi_accelerations`)."""
+    r"""Maggi's equations (82), $\sum_h \eta_{h\alpha}\big(\frac{d}{dt}\frac{\partial T}{\partial\dot q_h} - \frac{\partial T}{\partial q_h}\big) = \Phi_\alpha$ (`maggi_accelerations`; on the bundle `maggi_body_rates`)."""
 
     def accelerations(self, system, q, e, t):
         return maggi_accelerations(system, q, e, t)
 
+    def body_rates(self, H, H_dot_e, xi, inertia, wrench):
+        return maggi_body_rates(H, H_dot_e, xi, inertia, wrench)
+
 
 class AppellEquations(AbstractNonholonomicEquations):
-    r"""Appell's equations (§60), $\partial S/\partial\dot e_\alpha = \Phi_\alpha$ with the energy of accelerations $S$ (`appell_accelerations`)."""
+    r"""Appell's equations (§60), $\partial S/\partial\dot e_\alpha = \Phi_\alpha$ with the energy of accelerations $S$ (`appell_accelerations`; on the bundle `appell_body_rates`)."""
 
     def accelerations(self, system, q, e, t):
         return appell_accelerations(system, q, e, t)
+
+    def body_rates(self, H, H_dot_e, xi, inertia, wrench):
+        return appell_body_rates(H, H_dot_e, xi, inertia, wrench)

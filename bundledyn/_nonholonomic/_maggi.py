@@ -4,6 +4,7 @@ import jax
 import jax.numpy as jnp
 from jaxtyping import Array, Float
 
+from .. import lie
 from .._linalg import spd_solve
 from ._constraints import as_time, motion
 from ._system import AbstractNonholonomicSystem
@@ -120,3 +121,33 @@ def maggi_accelerations(
     )
     matrix = jax.vmap(linear, out_axes=1)(jnp.eye(e.shape[0], dtype=e.dtype))
     return spd_solve(matrix, -residual)
+
+
+def maggi_body_rates(
+    H: Float[Array, "6 nu"],
+    H_dot_e: Float[Array, "6"],
+    xi: Float[Array, "6"],
+    inertia: Float[Array, "6 6"],
+    wrench: Float[Array, "6"],
+) -> Float[Array, " nu"]:
+    r"""Maggi's equations (82) for a rigid body whose body twist is $\xi = He$: the rates $\dot e$.
+
+    With the body twist as the quasi-velocities, whose kinetic terms are those of (2.7) of
+    seed 004, $H^T\big(I\dot\xi + \operatorname{ad}^*_\xi I\xi - F\big) = 0$ with
+    $\dot\xi = H\dot e + \dot H e$, solved by Cholesky:
+    $\dot e = (H^TIH)^{-1}H^T\big(F - \operatorname{ad}^*_\xi I\xi - I\dot He\big)$.
+
+    **Arguments:**
+
+    - `H`: the body twist per unit characteristic, shape `(6, nu)`.
+    - `H_dot_e`: $\dot He$, shape `(6,)`.
+    - `xi`: the body twist $(\omega, v)$, shape `(6,)`.
+    - `inertia`: the spatial inertia $I$ about the body's origin, shape `(6, 6)`.
+    - `wrench`: the body wrench $F = (\tau, f)$ of the effects, shape `(6,)`.
+
+    **Returns:**
+
+    $\dot e$, shape `(nu,)`.
+    """
+    rhs = wrench - lie.coad_action(xi, inertia @ xi) - inertia @ H_dot_e
+    return spd_solve(H.T @ inertia @ H, H.T @ rhs)
