@@ -118,7 +118,12 @@ from ._solver._variational import VariationalMidpoint
 from ._state import State
 from ._systems._affine_body import AffineBody
 from ._systems._base import AbstractInertialSystem, AbstractSystem
-from ._systems._constrained import ConstrainedSystem, JointCoupling
+from ._systems._constrained import (
+    AbstractHolonomicConstraints,
+    ConstrainedSystem,
+    ImplicitConstraints,
+    JointCoupling,
+)
 from ._systems._generic import GenericSystem
 from ._systems._joints import (
     AbstractJoint,
@@ -148,6 +153,7 @@ __all__ = [
     "AbstractEffect",
     "AbstractFrame",
     "AbstractFreeMotionMode",
+    "AbstractHolonomicConstraints",
     "AbstractInertialSystem",
     "AbstractJoint",
     "AbstractKinematicConstraints",
@@ -176,6 +182,7 @@ __all__ = [
     "ChaplyginSleigh",
     "Composite",
     "ConstrainedSystem",
+    "ImplicitConstraints",
     "DenseMetricJet",
     "Diagnostics",
     "DiscContact",

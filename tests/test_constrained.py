@@ -254,3 +254,126 @@ def test_a_coupled_model_is_refused_as_a_bare_tree():
     )
     with pytest.raises(ValueError, match="other than joint couplings"):
         bd.Scene.from_mjcf(weld)
+
+
+# --- a closed loop: constraints given implicitly, solved by Newton's method ----------------
+
+CRANK, COUPLER, ROCKER = 0.3, 1.0, 0.8
+PIVOTS = np.array([[-0.5, 0.0, 0.0], [0.5, 0.0, 0.0]])  # on the base: A (crank), D (rocker)
+
+
+def _about_z(angle, translation):
+    T = np.eye(4)
+    c, s = np.cos(angle), np.sin(angle)
+    T[:2, :2] = [[c, -s], [s, c]]
+    T[:3, 3] = translation
+    return T
+
+
+def _bar(length, mass):
+    """A thin bar along its frame's x axis from the origin."""
+    return bd.RigidBody(
+        mass, (length / 2, 0.0, 0.0), np.diag([1e-3, mass * length**2 / 12, mass * length**2 / 12])
+    )
+
+
+def _four_bar():
+    """A free-floating four-bar linkage: the base is the ground link with pivots A and D,
+    the crank AB, coupler BC and rocker CD hinged about the base's z axis, assembled with the
+    crank upright and C above the base (one of the loop's two assembly modes). The loop
+    closes where the rocker's tip is at D: two equations for the coupler's and the rocker's
+    angles, the crank's free."""
+    A, D = PIVOTS
+    B = A + np.array([0.0, CRANK, 0.0])
+    # C: on the circles about B and D (radii the coupler and the rocker), the upper one.
+    gap = D - B
+    distance = np.linalg.norm(gap)
+    along = (COUPLER**2 - ROCKER**2 + distance**2) / (2 * distance)
+    up = np.array([-gap[1], gap[0], 0.0]) / distance
+    C = B + along * gap / distance + np.sqrt(COUPLER**2 - along**2) * up
+    angles = [np.arctan2(*(b - a)[1::-1]) for a, b in ((A, B), (B, C), (C, D))]
+    hinge = bd.Revolute((0.0, 0.0, 1.0), (0.0, 0.0, 0.0))
+    links = [
+        bd.Link(_bar(CRANK, 0.4), hinge, 0, _about_z(angles[0], A)),
+        bd.Link(_bar(COUPLER, 1.1), hinge, 1, _about_z(angles[1] - angles[0], (CRANK, 0, 0))),
+        bd.Link(_bar(ROCKER, 0.9), hinge, 2, _about_z(angles[2] - angles[1], (COUPLER, 0, 0))),
+    ]
+    system = bd.Multibody(
+        bd.RigidBody(2.0, jnp.zeros(3), jnp.diag(jnp.array([0.01, 0.2, 0.2]))), links
+    )
+    tip = jnp.array([ROCKER, 0.0, 0.0, 1.0])
+
+    def closure(q):
+        return (system.body_poses(q)[3] @ tip)[:2] - D[:2]
+
+    return system, bd.ImplicitConstraints(3, closure, dependent=(1, 2))
+
+
+@eqx.filter_jit
+def _solutions_and_derivatives(loop, p, h):
+    """The solution at `p` and at `p ± h`, its first and second derivatives and those of the first
+    at `p ± h` (one compiled program)."""
+    first = lambda p: jax.jacfwd(loop)(p)[:, 0]
+    return (
+        loop(p), (loop(p + h), loop(p - h)), first(p), (first(p + h), first(p - h)),
+        jax.jacfwd(first)(p)[:, 0],
+    )  # fmt: skip
+
+
+def test_a_closed_loop_is_assembled_and_solved_with_the_implicit_functions_derivatives():
+    system, loop = _four_bar()
+    np.testing.assert_allclose(loop.residual(jnp.zeros(3)), 0.0, atol=1e-15)  # assembled
+    h = 1e-6
+    q, (above, below), first, (first_above, first_below), second = _solutions_and_derivatives(
+        loop, jnp.array([0.4]), h
+    )
+    assert float(q[0]) == 0.4 and float(jnp.max(jnp.abs(loop.residual(q)))) < 1e-14
+    assert float(jnp.min(jnp.abs(q[1:]))) > 0.05  # the coupler and the rocker turned
+    np.testing.assert_allclose(first, (above - below) / (2 * h), rtol=1e-8)
+    np.testing.assert_allclose(second, (first_above - first_below) / (2 * h), rtol=1e-6)
+    # Far from the reference (the crank turned by 3 rad), on the same assembly mode.
+    far = loop(jnp.array([3.0]))
+    assert float(jnp.max(jnp.abs(loop.residual(far)))) < 1e-13
+
+
+def test_a_closed_loop_moves_as_with_lagrange_multipliers():
+    system, loop = _four_bar()
+    for key in jax.random.split(jax.random.PRNGKey(11), 3):
+        k = jax.random.split(key, 3)
+        p = jax.random.uniform(k[0], (1,), minval=-0.5, maxval=0.5)
+        xi = jax.random.normal(k[1], (6,))
+        pdot = 2.0 * jax.random.normal(k[2], (1,))
+        ours, reference = _both(system, loop, p, xi, pdot)
+        for a, b in zip(ours, reference, strict=True):
+            scale = float(jnp.max(jnp.abs(b)))
+            np.testing.assert_allclose(a, b, rtol=0, atol=1e-11 * scale)
+
+
+# Simulating differentiates the Newton solve twice (the pulled-back metric's jet): one of the
+# slowest programs of the suite to compile.
+@pytest.mark.slow
+def test_a_closed_loop_keeps_its_energy_and_stays_closed_through_simulate():
+    system, loop = _four_bar()
+    scene = bd.Scene(bd.ConstrainedSystem(system, loop), [GRAVITY])
+    state = bd.State(
+        jnp.eye(4), jnp.array([0.1]), jnp.array([0.2, -0.3, 0.5, 0.1, 0.0, -0.2]), jnp.array([3.0])
+    )
+    ts = jnp.linspace(0.0, 1.0, 11)
+    traj = bd.simulate(scene, state, 1.0, rtol=1e-11, atol=1e-11, saveat=diffrax.SaveAt(ts=ts))
+    energy = np.asarray(traj.energy())
+    np.testing.assert_allclose(energy, energy[0], rtol=1e-9)
+    assert np.ptp(np.asarray(traj.q[:, 0])) > 1.0  # the crank turns
+    residual = jax.vmap(lambda p: loop.residual(loop(p)))(traj.q)
+    assert float(jnp.max(jnp.abs(residual))) < 1e-13
+
+
+def test_implicit_constraints_refuse_what_they_cannot_solve():
+    with pytest.raises(ValueError, match="must name coordinates"):
+        bd.ImplicitConstraints(2, lambda q: q[1:], dependent=(2,))
+    with pytest.raises(ValueError, match="each coordinate once"):
+        bd.ImplicitConstraints(3, lambda q: q[1:], dependent=(1, 1))
+    with pytest.raises(ValueError, match="one per dependent coordinate"):
+        bd.ImplicitConstraints(3, lambda q: q, dependent=(1, 2))(jnp.array([0.1]))
+    no_root = bd.ImplicitConstraints(2, lambda q: jnp.stack([q[1] ** 2 + 1.0]), dependent=(1,))
+    with pytest.raises(Exception, match="did not solve"):
+        no_root(jnp.array([0.3]))
