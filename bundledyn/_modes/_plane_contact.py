@@ -36,6 +36,7 @@ from .. import lie
 from .._dynamics import bundle_geometry
 from .._effects import Kinematics
 from .._linalg import matmul
+from .._nonholonomic._body_motion import BodyMotion
 from .._nonholonomic._contact import AbstractContactSurface
 from .._nonholonomic._equations import AbstractNonholonomicEquations
 from .._state import State
@@ -190,7 +191,7 @@ class AbstractPlaneContactMode(AbstractFreeMotionMode):
         )
         inertia = bundle_geometry(scene.system, q, xi, qdot).I_r
         F, _ = scene.forces(Kinematics(t, g, q, xi, qdot))
-        return xi, self.equations.body_rates(H, H_dot_e, xi, inertia, F)
+        return xi, self.equations.body_rates(BodyMotion(H, H_dot_e, xi, inertia, F))
 
     def kinematics(self, scene: SceneParts, t, y):
         g, q, xi, qdot = self.unpack(scene, t, y)

@@ -15,6 +15,7 @@ from ._appell import (
     body_acceleration_energy,
 )
 from ._bicycle import Placement, WhippleBicycle
+from ._body_motion import BodyMotion
 from ._constraints import (
     AbstractKinematicConstraints,
     constrained_accelerations,
@@ -54,6 +55,7 @@ __all__ = [
     "AbstractKinematicConstraints",
     "AbstractNonholonomicEquations",
     "AbstractNonholonomicSystem",
+    "BodyMotion",
     "AppellEquations",
     "ChaplyginSleigh",
     "DiscContact",

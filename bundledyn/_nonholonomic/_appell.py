@@ -6,6 +6,7 @@ from jaxtyping import Array, Float
 
 from .. import lie
 from .._linalg import spd_solve
+from ._body_motion import BodyMotion
 from ._constraints import as_time, motion
 from ._system import AbstractNonholonomicSystem
 
@@ -110,13 +111,7 @@ def _pseudo_inertia(inertia):
     return jnp.concatenate([top, jnp.concatenate([moment, mass[None]])[None]], axis=0)
 
 
-def body_acceleration_energy(
-    H: Float[Array, "6 nu"],
-    H_dot_e: Float[Array, "6"],
-    xi: Float[Array, "6"],
-    inertia: Float[Array, "6 6"],
-    edot: Float[Array, " nu"],
-) -> Float[Array, ""]:
+def body_acceleration_energy(body: BodyMotion, edot: Float[Array, " nu"]) -> Float[Array, ""]:
     r"""The energy of accelerations $S = \tfrac12\int|a|^2dm$ (§60) of a rigid body whose body twist is $\xi = He$.
 
     From the material points' accelerations, not from the Euler equations: with the pose
@@ -127,25 +122,19 @@ def body_acceleration_energy(
 
     **Arguments:**
 
-    - `H`, `H_dot_e`, `xi`, `inertia`: as `maggi_body_rates`.
+    - `body`: a `BodyMotion` (its wrench is not read).
     - `edot`: the characteristics' rates, shape `(nu,)`.
 
     **Returns:**
 
     $S$, a scalar, quadratic in `edot`.
     """
-    twist = lie.se3_hat(xi)
-    B = (twist @ twist + lie.se3_hat(H @ edot + H_dot_e))[:3]
-    return 0.5 * jnp.trace(B @ _pseudo_inertia(inertia) @ B.T)
+    twist = lie.se3_hat(body.xi)
+    B = (twist @ twist + lie.se3_hat(body.H @ edot + body.H_dot_e))[:3]
+    return 0.5 * jnp.trace(B @ _pseudo_inertia(body.inertia) @ B.T)
 
 
-def appell_body_rates(
-    H: Float[Array, "6 nu"],
-    H_dot_e: Float[Array, "6"],
-    xi: Float[Array, "6"],
-    inertia: Float[Array, "6 6"],
-    wrench: Float[Array, "6"],
-) -> Float[Array, " nu"]:
+def appell_body_rates(body: BodyMotion) -> Float[Array, " nu"]:
     r"""Appell's equations $\partial S/\partial\dot e_\alpha = \Phi_\alpha$ (§60) for a rigid body whose body twist is $\xi = He$.
 
     $S$ is `body_acceleration_energy`, quadratic in $\dot e$: its gradient at $\dot e = 0$
@@ -153,7 +142,9 @@ def appell_body_rates(
     characteristics are $\Phi = H^TF$ (81), the virtual work of the wrench $F$ on
     $\delta\xi = H\delta\varepsilon$. The same $\dot e$ as `maggi_body_rates`.
 
-    **Arguments:** as `maggi_body_rates`.
+    **Arguments:**
+
+    - `body`: a `BodyMotion` ($H$, $\dot He$, $\xi$, $I$, $F$).
 
     **Returns:**
 
@@ -161,8 +152,8 @@ def appell_body_rates(
     """
 
     def energy(edot):
-        return body_acceleration_energy(H, H_dot_e, xi, inertia, edot)
+        return body_acceleration_energy(body, edot)
 
-    zero = jnp.zeros(H.shape[1], H.dtype)
-    gradient = jax.grad(energy)(zero) - H.T @ wrench
+    zero = jnp.zeros(body.H.shape[1], body.H.dtype)
+    gradient = jax.grad(energy)(zero) - body.H.T @ body.wrench
     return spd_solve(jax.hessian(energy)(zero), -gradient)

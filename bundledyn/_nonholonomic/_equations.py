@@ -6,6 +6,7 @@ import equinox as eqx
 from jaxtyping import Array, Float
 
 from ._appell import appell_accelerations, appell_body_rates
+from ._body_motion import BodyMotion
 from ._maggi import maggi_accelerations, maggi_body_rates
 from ._system import AbstractNonholonomicSystem
 
@@ -38,23 +39,12 @@ class AbstractNonholonomicEquations(eqx.Module):
         """
 
     @abc.abstractmethod
-    def body_rates(
-        self,
-        H: Float[Array, "6 nu"],
-        H_dot_e: Float[Array, "6"],
-        xi: Float[Array, "6"],
-        inertia: Float[Array, "6 6"],
-        wrench: Float[Array, "6"],
-    ) -> Float[Array, " nu"]:
+    def body_rates(self, body: BodyMotion) -> Float[Array, " nu"]:
         r"""The rates $\dot e$ of a rigid body whose body twist is $\xi = He$.
 
         **Arguments:**
 
-        - `H`: the body twist per unit characteristic, shape `(6, nu)`.
-        - `H_dot_e`: $\dot He$, shape `(6,)`.
-        - `xi`: the body twist $(\omega, v)$, shape `(6,)`.
-        - `inertia`: the spatial inertia about the body's origin, shape `(6, 6)`.
-        - `wrench`: the body wrench $(\tau, f)$ of the effects, shape `(6,)`.
+        - `body`: a `BodyMotion` ($H$, $\dot He$, $\xi$, the spatial inertia, the wrench).
 
         **Returns:**
 
@@ -68,8 +58,8 @@ class MaggiEquations(AbstractNonholonomicEquations):
     def accelerations(self, system, q, e, t):
         return maggi_accelerations(system, q, e, t)
 
-    def body_rates(self, H, H_dot_e, xi, inertia, wrench):
-        return maggi_body_rates(H, H_dot_e, xi, inertia, wrench)
+    def body_rates(self, body):
+        return maggi_body_rates(body)
 
 
 class AppellEquations(AbstractNonholonomicEquations):
@@ -78,5 +68,5 @@ class AppellEquations(AbstractNonholonomicEquations):
     def accelerations(self, system, q, e, t):
         return appell_accelerations(system, q, e, t)
 
-    def body_rates(self, H, H_dot_e, xi, inertia, wrench):
-        return appell_body_rates(H, H_dot_e, xi, inertia, wrench)
+    def body_rates(self, body):
+        return appell_body_rates(body)

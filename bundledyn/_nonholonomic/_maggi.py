@@ -6,6 +6,7 @@ from jaxtyping import Array, Float
 
 from .. import lie
 from .._linalg import spd_solve
+from ._body_motion import BodyMotion
 from ._constraints import as_time, motion
 from ._system import AbstractNonholonomicSystem
 
@@ -123,13 +124,7 @@ def maggi_accelerations(
     return spd_solve(matrix, -residual)
 
 
-def maggi_body_rates(
-    H: Float[Array, "6 nu"],
-    H_dot_e: Float[Array, "6"],
-    xi: Float[Array, "6"],
-    inertia: Float[Array, "6 6"],
-    wrench: Float[Array, "6"],
-) -> Float[Array, " nu"]:
+def maggi_body_rates(body: BodyMotion) -> Float[Array, " nu"]:
     r"""Maggi's equations (82) for a rigid body whose body twist is $\xi = He$: the rates $\dot e$.
 
     With the body twist as the quasi-velocities, whose kinetic terms are those of (2.7) of
@@ -139,15 +134,12 @@ def maggi_body_rates(
 
     **Arguments:**
 
-    - `H`: the body twist per unit characteristic, shape `(6, nu)`.
-    - `H_dot_e`: $\dot He$, shape `(6,)`.
-    - `xi`: the body twist $(\omega, v)$, shape `(6,)`.
-    - `inertia`: the spatial inertia $I$ about the body's origin, shape `(6, 6)`.
-    - `wrench`: the body wrench $F = (\tau, f)$ of the effects, shape `(6,)`.
+    - `body`: a `BodyMotion` ($H$, $\dot He$, $\xi$, $I$, $F$).
 
     **Returns:**
 
     $\dot e$, shape `(nu,)`.
     """
-    rhs = wrench - lie.coad_action(xi, inertia @ xi) - inertia @ H_dot_e
+    H, inertia = body.H, body.inertia
+    rhs = body.wrench - lie.coad_action(body.xi, inertia @ body.xi) - inertia @ body.H_dot_e
     return spd_solve(H.T @ inertia @ H, H.T @ rhs)

@@ -37,6 +37,17 @@ _STAGE_LENGTH = 0.5
 _NEWTON_STEPS = 4
 
 
+def _reference_or_zeros(shape_dim, reference):
+    return jnp.zeros(shape_dim) if reference is None else jnp.asarray(reference, float)
+
+
+def _check_reference(owner, reference, shape_dim):
+    if reference.shape != (shape_dim,):
+        raise ValueError(
+            f"`{owner}.reference` must have shape ({shape_dim},), got {reference.shape}."
+        )
+
+
 class AbstractHolonomicConstraints(eqx.Module):
     r"""Holonomic constraints $f(q) = 0$ among $d$ shape coordinates, solved as $q = \Phi(p)$
     for the free coordinates $p$ (seed 001, §54).
@@ -110,16 +121,11 @@ class JointCoupling(AbstractHolonomicConstraints):
                 )
             rows.append(np.pad(a, (0, 5 - a.size)))
         self.coefficients = jnp.asarray(np.reshape(rows, (len(rows), 5)), dtype=float)
-        self.reference = (
-            jnp.zeros(self.shape_dim) if reference is None else jnp.asarray(reference, float)
-        )
+        self.reference = _reference_or_zeros(self.shape_dim, reference)
 
     def __check_init__(self):
         d = self.shape_dim
-        if self.reference.shape != (d,):
-            raise ValueError(
-                f"`JointCoupling.reference` must have shape ({d},), got {self.reference.shape}."
-            )
+        _check_reference("JointCoupling", self.reference, d)
         named = [j for j in self.dependent] + [i for i in self.independent if i is not None]
         if any(not 0 <= k < d for k in named):
             raise ValueError(f"`JointCoupling` indices must lie in [0, {d}), got {named}.")
@@ -195,17 +201,11 @@ class ImplicitConstraints(AbstractHolonomicConstraints):
         self.shape_dim = int(shape_dim)
         self.function = function
         self.dependent = tuple(int(j) for j in dependent)
-        self.reference = (
-            jnp.zeros(self.shape_dim) if reference is None else jnp.asarray(reference, float)
-        )
+        self.reference = _reference_or_zeros(self.shape_dim, reference)
 
     def __check_init__(self):
         d = self.shape_dim
-        if self.reference.shape != (d,):
-            raise ValueError(
-                f"`ImplicitConstraints.reference` must have shape ({d},), got "
-                f"{self.reference.shape}."
-            )
+        _check_reference("ImplicitConstraints", self.reference, d)
         if not self.dependent or any(not 0 <= j < d for j in self.dependent):
             raise ValueError(
                 f"`ImplicitConstraints.dependent` must name coordinates in [0, {d}), got "
