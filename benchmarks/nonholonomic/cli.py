@@ -6,7 +6,7 @@ import numpy as np
 from benchmarks import _output
 from benchmarks._provenance import report_header
 from benchmarks.nonholonomic import bicycle, disc
-from benchmarks.nonholonomic.measure import first_answers, member_runs
+from benchmarks.nonholonomic.measure import first_answers, member_runs, model_sides
 from benchmarks.nonholonomic.report import markdown
 
 DESCRIPTION = "Rolling bodies (the leaning disc, the Whipple bicycle) against sympy's KanesMethod."
@@ -30,12 +30,16 @@ def measure(quick, repeats):
     for problem in PROBLEMS:
         members = problem.members(quick)
         print(f"{problem.NAME}:", flush=True)
+        sides = {m["variant"]: model_sides(problem, m["variant"]) for m in members}
+        first = members[0]
         report["problems"].append({
             "name": problem.NAME,
             "horizon": horizon,
             "repeats": 1 if quick else repeats,
-            "first_answer": first_answers(problem, members[0], ts, 1 if quick else repeats),
-            "members": member_runs(problem, members, ts, repeats),
+            "first_answer": first_answers(
+                problem, first, sides[first["variant"]], ts, 1 if quick else repeats
+            ),
+            "members": member_runs(problem, members, sides, ts, repeats),
         })  # fmt: skip
     return report
 

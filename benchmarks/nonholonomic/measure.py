@@ -43,16 +43,18 @@ def _ours_first_answer(problem, variant, y0, ts):
     return time.perf_counter() - start
 
 
-def _initial_states(problem, member):
-    """Both sides' initial states of `member` (the data each is given, not timed)."""
-    model = problem.kane_model(member["variant"])
-    speeds = peer.dependent_speeds(model)
-    return problem.initial_states(problem.ours_model(member["variant"]), speeds, member)
+def model_sides(problem, variant):
+    """`(bundledyn's model, the peer's numeric field, its dependent speeds)` of a variant,
+    derived once for the untimed work (initial states, the member runs)."""
+    model = problem.kane_model(variant)
+    return problem.ours_model(variant), peer.numeric_field(model), peer.dependent_speeds(model)
 
 
-def first_answers(problem, member, ts, repeats):
-    """Cold times to the first trajectory of `member`, `repeats` rounds of both sides."""
-    y0, x0 = _initial_states(problem, member)
+def first_answers(problem, member, sides, ts, repeats):
+    """Cold times to the first trajectory of `member`, `repeats` rounds of both sides;
+    `sides` (`model_sides`) give the initial states."""
+    ours, _, speeds = sides
+    y0, x0 = problem.initial_states(ours, speeds, member)
     rounds = {"derive": [], "lambdify": [], "solve": [], "sympy": [], "bundledyn": []}
     for _ in range(repeats):
         _cold()
@@ -95,18 +97,10 @@ def _member_run(problem, member, sides, ts, repeats):
     }
 
 
-def member_runs(problem, members, ts, repeats):
-    """`_member_run` of every member, each model variant derived and compiled once."""
-    sides, out = {}, []
+def member_runs(problem, members, sides, ts, repeats):
+    """`_member_run` of every member; `sides` maps each model variant to its `model_sides`."""
+    out = []
     for member in members:
-        variant = member["variant"]
-        if variant not in sides:
-            model = problem.kane_model(variant)
-            sides[variant] = (
-                problem.ours_model(variant),
-                peer.numeric_field(model),
-                peer.dependent_speeds(model),
-            )
-        out.append(_member_run(problem, member, sides[variant], ts, repeats))
+        out.append(_member_run(problem, member, sides[member["variant"]], ts, repeats))
         print(f"  {member['label']}: agree {out[-1]['agreement']:.1e}", flush=True)
     return out

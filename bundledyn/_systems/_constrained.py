@@ -149,10 +149,8 @@ class JointCoupling(AbstractHolonomicConstraints):
 
     def __call__(self, p: Float[Array, " m"]) -> Float[Array, " d"]:
         r"""$q = \Phi(p)$: the free coordinates `p` and the coupled ones they set."""
-        q = jnp.zeros(self.shape_dim, p.dtype).at[np.asarray(self.free, dtype=int)].set(p)
-        if not self.dependent:
-            return q
-        return q.at[np.asarray(self.dependent, dtype=int)].set(self._set_values(q))
+        followed = self._assembled(p, jnp.zeros(len(self.dependent), p.dtype))
+        return self._assembled(p, self._set_values(followed))
 
     def residual(self, q: Float[Array, " d"]) -> Float[Array, " r"]:
         r"""$f(q)$: each coupled coordinate minus the value its coupling sets; zero on the
