@@ -61,6 +61,7 @@ from ._modes import (
     PrescribedShapeMode,
     RigidBodyMode,
     RollingMode,
+    RollingWheelMode,
     SkatingMode,
 )
 from ._nonholonomic import (
@@ -232,6 +233,7 @@ __all__ = [
     "RollingDisc",
     "WhippleBicycle",
     "RollingMode",
+    "RollingWheelMode",
     "Scene",
     "SceneFile",
     "SceneFileError",

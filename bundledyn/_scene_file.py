@@ -25,7 +25,13 @@ from ._effects import (
 )
 from ._frames import Boosted, FreeFalling
 from ._geometry import connection
-from ._modes import AbstractPlaneContactMode, Prescribed, RollingMode, SkatingMode
+from ._modes import (
+    AbstractPlaneContactMode,
+    Prescribed,
+    RollingMode,
+    RollingWheelMode,
+    SkatingMode,
+)
 from ._nonholonomic import (
     DiscContact,
     EllipsoidContact,
@@ -422,9 +428,13 @@ _CONTACTS = {
 }
 
 
-def _contact(t: _Table, name: str) -> AbstractPlaneContactMode:
-    """The `[rolling]` or `[skating]` table: a contact surface on a plane."""
+def _contact(t: _Table, name: str) -> AbstractPlaneContactMode | RollingWheelMode:
+    """The `[rolling]` or `[skating]` table: a contact surface on a plane (of a tree's
+    `wheel`, if the rolling table names one)."""
     make_mode, kinds, own = _CONTACTS[name]
+    if name == "rolling" and t.has("wheel"):
+        wheel = t.string("wheel")
+        make_mode = lambda surface, **plane: RollingWheelMode(surface, wheel=wheel, **plane)
     kind = t.string("surface", choices=set(kinds))
     make, numbers, vectors = _SURFACES[kind]
     arguments = {key: t.number(key) for key in numbers}
@@ -446,6 +456,19 @@ def _pose(t: _Table):
     g[:3, :3] = np.asarray(lie.so3_exp(jnp.asarray(t.array("rotation", (3,), (0.0, 0.0, 0.0)))))
     g[:3, 3] = t.array("position", (3,), (0.0, 0.0, 0.0))
     return g
+
+
+def _wheel_state(t: _Table, mode: RollingWheelMode, system):
+    """`[initial]` of a tree rolling on a wheel: the pose (placed on the plane), the shape
+    `q`, `qdot` and the section's angular velocity `omega`."""
+    if t.has("xi"):
+        raise t.fail("xi", "the twist of a rolling tree follows from `omega` and `qdot`.")
+    g = _pose(t)
+    d = system.shape_dim
+    q, qdot = t.vector_or_scalar("q", d, 0.0), t.vector_or_scalar("qdot", d, 0.0)
+    omega = t.array("omega", (3,), (0.0, 0.0, 0.0))
+    t.done()
+    return mode.state(system, g, q, omega, qdot)
 
 
 def _contact_state(t: _Table, mode: AbstractPlaneContactMode):
@@ -512,7 +535,10 @@ class SceneFile:
       `"torus"` (`radius`, `tube_radius`, `axis`, `centre`) or `"ellipsoid"` (`semi_axes`,
       `centre`); the plane's `normal` (default up) and `offset`. Its `[initial]` takes
       `position`, `rotation` and the body angular velocity `omega` (the body is placed on
-      the plane, its twist the rolling one); not with `[shape]`.
+      the plane, its twist the rolling one); not with `[shape]`. With `wheel` (a body's
+      name), that body of a tree rolls (`RollingWheelMode`), and `[initial]` takes
+      `position`, `rotation`, the shape `q`, `qdot` and the section's angular velocity
+      `omega`.
     - `[skating]`: the rigid body skates on a blade on a plane (`SkatingMode`): `surface` =
       `"point"` (`point`) or `"disc"` (a rockered blade: `radius`, `axis`, `centre`), the
       blade plane's normal `blade_axis` (default $(0, 1, 0)$), the plane's `normal` and
@@ -586,11 +612,12 @@ class SceneFile:
             raise time.fail("saves", "must be a whole number ≥ 2.")
         time.done()
         initial = root.table("initial", {})
-        state = (
-            _state(initial, system, shape, t0)
-            if contact is None
-            else _contact_state(initial, contact)
-        )
+        if contact is None:
+            state = _state(initial, system, shape, t0)
+        elif isinstance(contact, RollingWheelMode):
+            state = _wheel_state(initial, contact, system)
+        else:
+            state = _contact_state(initial, contact)
 
         solver_table = root.table("solver", {})
         method = solver_table.string("method", "RKMK87", set(SOLVERS))

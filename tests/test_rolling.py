@@ -9,6 +9,17 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
+from euler_disc import (
+    AXIAL,
+    DIAMETRAL,
+    DISC_INERTIA,
+    DISC_MASS,
+    DISC_RADIUS,
+    body_angular_velocity,
+    centre_velocity,
+    contact_velocity,
+    orientation,
+)
 from systems import chain
 
 import bundledyn as bd
@@ -107,44 +118,9 @@ def test_the_chaplygin_sphere_keeps_its_four_invariants():
 
 # --- the tilting disc: an independent derivation in Euler angles ---------------------------
 
-DISC_MASS, DISC_RADIUS = 1.5, 0.2
-# A uniform thin disc, its axle along the body's y axis.
-DIAMETRAL, AXIAL = DISC_MASS * DISC_RADIUS**2 / 4, DISC_MASS * DISC_RADIUS**2 / 2
-DISC_INERTIA = jnp.diag(jnp.array([DIAMETRAL, AXIAL, DIAMETRAL]))
 CRITICAL_SPIN = np.sqrt(
     DISC_MASS * GRAVITY * DISC_RADIUS * DIAMETRAL / (AXIAL * (AXIAL + DISC_MASS * DISC_RADIUS**2))
 )
-
-
-def _axis_rotation(axis, angle):
-    """The rotation by `angle` about coordinate axis `axis`, written out in sines and cosines
-    (not by the library's exponential: an independent derivation, and a small program to
-    differentiate three times)."""
-    c, s = jnp.cos(angle), jnp.sin(angle)
-    i, j = (axis + 1) % 3, (axis + 2) % 3
-    R = jnp.zeros((3, 3), dtype=c.dtype).at[axis, axis].set(1.0)
-    return R.at[i, i].set(c).at[j, j].set(c).at[j, i].set(s).at[i, j].set(-s)
-
-
-def _orientation(q):
-    """$R = R_z(\\varphi)R_x(\\theta)R_y(\\psi)$: heading, tilt from upright, spin about the axle."""
-    return _axis_rotation(2, q[2]) @ _axis_rotation(0, q[3]) @ _axis_rotation(1, q[4])
-
-
-def _body_angular_velocity(q, qdot):
-    R, R_dot = jax.jvp(_orientation, (q,), (qdot,))
-    return bd.lie.so3_vee(R.T @ R_dot)
-
-
-def _centre_velocity(q, qdot):
-    # the centre is at height a cos(theta) above the contact
-    return jnp.stack([qdot[0], qdot[1], -DISC_RADIUS * jnp.sin(q[3]) * qdot[3]])
-
-
-def _contact_velocity(q, qdot):
-    lowest = _axis_rotation(2, q[2]) @ jnp.stack([0.0 * q[3], -jnp.sin(q[3]), jnp.cos(q[3])])
-    omega = _orientation(q) @ _body_angular_velocity(q, qdot)
-    return _centre_velocity(q, qdot) + jnp.cross(omega, -DISC_RADIUS * lowest)
 
 
 def _disc_in_euler_angles():
@@ -153,11 +129,11 @@ def _disc_in_euler_angles():
     velocity, solved for $(\\dot x, \\dot y)$."""
 
     def kinetic_energy(q, qdot, t):
-        v, omega = _centre_velocity(q, qdot), _body_angular_velocity(q, qdot)
+        v, omega = centre_velocity(q, qdot), body_angular_velocity(q, qdot)
         return 0.5 * DISC_MASS * v @ v + 0.5 * omega @ DISC_INERTIA @ omega
 
     def rows(q, t):
-        return jax.jacfwd(lambda qdot: _contact_velocity(q, qdot)[:2])(jnp.zeros_like(q))
+        return jax.jacfwd(lambda qdot: contact_velocity(q, qdot)[:2])(jnp.zeros_like(q))
 
     return bd.NonholonomicSystem(
         T=kinetic_energy,
@@ -173,9 +149,9 @@ def _disc_scene(surface=None):
 def _disc_state(scene, q, e):
     """The bundle's state of the Euler-angle state `(q, e)`."""
     qdot = bd.constrained_velocities(_disc_in_euler_angles().constraints, q, e, 0.0)
-    g = jnp.eye(4).at[:3, :3].set(_orientation(q))
+    g = jnp.eye(4).at[:3, :3].set(orientation(q))
     g = g.at[:3, 3].set(jnp.stack([q[0], q[1], DISC_RADIUS * jnp.cos(q[3])]))
-    return scene.mode.state(g, _body_angular_velocity(q, qdot))
+    return scene.mode.state(g, body_angular_velocity(q, qdot))
 
 
 def test_the_rolling_disc_on_se3_moves_as_its_euler_angle_equations_move_it():
@@ -190,7 +166,7 @@ def test_the_rolling_disc_on_se3_moves_as_its_euler_angle_equations_move_it():
         stepsize_controller=diffrax.PIDController(rtol=1e-12, atol=1e-12),
     )  # fmt: skip
     q = reference.ys[0]
-    np.testing.assert_allclose(traj.g[:, :3, :3], jax.vmap(_orientation)(q), atol=1e-9)
+    np.testing.assert_allclose(traj.g[:, :3, :3], jax.vmap(orientation)(q), atol=1e-9)
     np.testing.assert_allclose(traj.g[:, :2, 3], q[:, :2], atol=1e-9)
     assert float(jnp.max(jnp.abs(q[:, 3] - q0[3]))) > 0.1  # it tilts and wobbles
     energy = np.asarray(traj.energy())

@@ -1,0 +1,192 @@
+"""A wheel of a multibody tree rolling without slipping (`RollingWheelMode`, seed 001 (76),
+(77), (82) on SE(3) × shape space), against an independent derivation: a unicycle (a rider
+hinged on a rolling disc's axle) in Euler angles, a `NonholonomicSystem` with its kinetic
+energy written out and its contact rows by autodiff."""
+
+import functools
+
+import diffrax
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+from euler_disc import (
+    DISC_INERTIA,
+    DISC_MASS,
+    DISC_RADIUS,
+    axis_rotation,
+    centre_velocity,
+    contact_velocity,
+)
+
+import bundledyn as bd
+
+GRAVITY = 9.81
+
+# The rider: a body hinged on the wheel's axle (the body y axis through the wheel's centre),
+# its centre of mass below the axle and off the wheel's plane, its inertia not diagonal.
+RIDER_MASS = 3.0
+RIDER_COM = jnp.array([0.03, 0.05, -0.3])
+RIDER_INERTIA = jnp.array([[0.09, 0.004, -0.006], [0.004, 0.08, 0.003], [-0.006, 0.003, 0.03]])
+
+
+def _rider_orientation(q):
+    """$R_r = R_z(\\varphi)R_x(\\theta)R_y(\\beta)$: the wheel's heading and tilt, then the rider's
+    pitch about the axle."""
+    return axis_rotation(2, q[2]) @ axis_rotation(0, q[3]) @ axis_rotation(1, q[5])
+
+
+def _wheel_orientation(q):
+    return axis_rotation(2, q[2]) @ axis_rotation(0, q[3]) @ axis_rotation(1, q[4])
+
+
+def _angular_velocity(orientation, q, qdot):
+    R, R_dot = jax.jvp(orientation, (q,), (qdot,))
+    return bd.lie.so3_vee(R.T @ R_dot)
+
+
+def _unicycle_in_euler_angles():
+    """The unicycle in $q = (x, y, \\varphi, \\theta, \\psi, \\beta)$: the wheel's centre, heading,
+    tilt and spin, and the rider's pitch about the axle; the wheel's horizontal contact rows
+    (76) solved for $(\\dot x, \\dot y)$."""
+
+    def kinetic_energy(q, qdot, t):
+        v = centre_velocity(q, qdot)
+        wheel = _angular_velocity(_wheel_orientation, q, qdot)
+        rider = _angular_velocity(_rider_orientation, q, qdot)
+        v_rider = v + _rider_orientation(q) @ jnp.cross(rider, RIDER_COM)
+        return 0.5 * (
+            DISC_MASS * v @ v
+            + wheel @ DISC_INERTIA @ wheel
+            + RIDER_MASS * v_rider @ v_rider
+            + rider @ RIDER_INERTIA @ rider
+        )
+
+    def potential(q, t):
+        height = DISC_RADIUS * jnp.cos(q[3])
+        rider_height = height + (_rider_orientation(q) @ RIDER_COM)[2]
+        return GRAVITY * (DISC_MASS * height + RIDER_MASS * rider_height)
+
+    def rows(q, t):
+        # the contact point depends on the wheel's heading and tilt only, as for the disc
+        velocity = lambda qdot: contact_velocity(q[:5], qdot[:5])[:2]
+        return jax.jacfwd(velocity)(jnp.zeros_like(q))
+
+    return bd.NonholonomicSystem(
+        T=kinetic_energy,
+        constraints=bd.PfaffianConstraints(rows, independent=(2, 3, 4, 5)),
+        Pi=potential,
+    )
+
+
+@functools.cache
+def _unicycle():
+    """The same unicycle as a tree: the rider is the floating base, its frame's origin on the
+    axle at the wheel's centre, and the wheel a hinge about its y axis."""
+    rider = bd.RigidBody(RIDER_MASS, RIDER_COM, RIDER_INERTIA)
+    wheel = bd.RigidBody(DISC_MASS, jnp.zeros(3), DISC_INERTIA)
+    hinge = bd.Link(wheel, bd.Revolute((0.0, 1.0, 0.0)), 0, np.eye(4))
+    return bd.Multibody(rider, [hinge], names=("rider", "wheel"))
+
+
+def _scene(wheel="wheel"):
+    tree = _unicycle()
+    mode = bd.RollingWheelMode(bd.DiscContact(DISC_RADIUS), wheel=wheel)
+    return bd.Scene(tree, [bd.Gravity(GRAVITY)], mode=mode)
+
+
+def _state(scene, q, e):
+    """The tree's state of the Euler-angle state `(q, e)`: the rider's pose, the hinge angle
+    $\\psi - \\beta$, the rider's body angular velocity and the hinge's rate."""
+    qdot = bd.constrained_velocities(_unicycle_in_euler_angles().constraints, q, e, 0.0)
+    g = jnp.eye(4).at[:3, :3].set(_rider_orientation(q))
+    g = g.at[:3, 3].set(jnp.stack([q[0], q[1], DISC_RADIUS * jnp.cos(q[3])]))
+    omega = _angular_velocity(_rider_orientation, q, qdot)
+    return scene.mode.state(scene.system, g, (q[4] - q[5])[None], omega, (e[2] - e[3])[None])
+
+
+Q0 = jnp.array([0.1, -0.2, 0.3, 0.25, 0.4, -0.2])
+E0 = jnp.array([0.7, -0.3, 12.0, 0.5])  # heading, tilt, spin and pitch rates
+T1, SAVES = 1.0, 11
+
+
+def test_a_unicycle_on_the_bundle_moves_as_its_euler_angle_equations_move_it():
+    scene = _scene()
+    ts = jnp.linspace(0.0, T1, SAVES)
+    traj = bd.simulate(
+        scene, _state(scene, Q0, E0), T1, rtol=1e-12, atol=1e-12, saveat=diffrax.SaveAt(ts=ts)
+    )
+    reference = diffrax.diffeqsolve(
+        bd.NonholonomicTerm(_unicycle_in_euler_angles()), diffrax.Tsit5(), 0.0, T1, None,
+        (Q0, E0), saveat=diffrax.SaveAt(ts=ts), max_steps=100_000,
+        stepsize_controller=diffrax.PIDController(rtol=1e-12, atol=1e-12),
+    )  # fmt: skip
+    q = reference.ys[0]
+    np.testing.assert_allclose(traj.g[:, :3, :3], jax.vmap(_rider_orientation)(q), atol=1e-10)
+    np.testing.assert_allclose(traj.g[:, :2, 3], q[:, :2], atol=1e-10)
+    np.testing.assert_allclose(traj.q[:, 0], q[:, 4] - q[:, 5], atol=1e-10)
+    # the motion is not trivial: the rider swings and the wheel tilts
+    assert float(jnp.max(jnp.abs(q[:, 5] - Q0[5]))) > 0.1
+    assert float(jnp.max(jnp.abs(q[:, 3] - Q0[3]))) > 0.05
+    energy = np.asarray(traj.energy())
+    np.testing.assert_allclose(energy, energy[0], rtol=1e-10)
+    # the wheel's contact point is at rest and on the plane at every saved state
+    residual = np.asarray(traj.diagnostics().constraint_residual)
+    assert np.max(np.abs(residual)) < 1e-12
+
+
+def test_the_state_keeps_the_wheel_rolling_and_the_layout_gives_it_back():
+    scene = _scene()
+    state = _state(scene, Q0, E0)
+    residual = scene.mode.constraint_residual(scene, state)
+    np.testing.assert_allclose(residual, 0.0, atol=1e-14)
+    y = scene.mode.encode(scene, 0.0, state)
+    back, _ = scene.mode.decode(scene, 0.0, y)
+    for name in ("g", "q", "xi", "qdot"):
+        np.testing.assert_allclose(getattr(back, name), getattr(state, name), atol=1e-14)
+    sliding = bd.State(state.g, state.q, state.xi.at[3].add(0.1), state.qdot)
+    with pytest.raises(Exception, match="does not keep the wheel rolling"):
+        scene.mode.encode(scene, 0.0, sliding)
+
+
+@pytest.mark.parametrize(
+    "build, message",
+    [
+        (lambda: _scene(wheel="tyre"), "not one of the tree's bodies"),
+        (lambda: _scene(wheel=2), "the tree has 2 bodies"),
+        (
+            lambda: bd.Scene(
+                bd.RigidBody(1.0, jnp.zeros(3), jnp.eye(3)),
+                [],
+                mode=bd.RollingWheelMode(bd.DiscContact(0.2), wheel=0),
+            ),
+            "A single rolling body is `bd.RollingMode`",
+        ),
+        (lambda: bd.RollingWheelMode(0.2, wheel="wheel"), "AbstractContactSurface"),
+    ],
+)
+def test_what_it_cannot_roll_is_refused_with_the_fix(build, message):
+    with pytest.raises(ValueError, match=message):
+        build()
+
+
+def test_the_shipped_unicycle_scene_is_the_tree_built_in_python():
+    sf = bd.SceneFile.load(bd.scenes / "unicycle.toml")
+    mode, tree = sf.scene.mode, sf.scene.system
+    assert isinstance(mode, bd.RollingWheelMode) and mode.wheel == "wheel"
+    assert tree.names == ("rider", "wheel")
+    for q in (0.0, 0.6, -2.0):
+        np.testing.assert_allclose(
+            tree.metric(jnp.array([q])), _unicycle().metric(jnp.array([q])), atol=1e-15
+        )
+    # placed on the plane, rolling, with the file's shape and angular velocity
+    np.testing.assert_allclose(mode.constraint_residual(sf.scene, sf.state), 0.0, atol=1e-15)
+    np.testing.assert_allclose(sf.state.xi[:3], [0.0, 0.5, 0.7])
+    np.testing.assert_allclose(sf.state.qdot, [12.0])
+    # and moves as the Python scene does from there
+    python = _scene()
+    y = python.mode.encode(python, 0.0, sf.state)
+    for a, b in zip(
+        python.mode.body_field(python, 0.0, y), mode.body_field(sf.scene, 0.0, y), strict=True
+    ):
+        np.testing.assert_allclose(a, b, rtol=1e-13, atol=1e-13)
