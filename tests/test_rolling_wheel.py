@@ -6,6 +6,7 @@ energy written out and its contact rows by autodiff."""
 import functools
 
 import diffrax
+import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -133,6 +134,27 @@ def test_a_unicycle_on_the_bundle_moves_as_its_euler_angle_equations_move_it():
     # the wheel's contact point is at rest and on the plane at every saved state
     residual = np.asarray(traj.diagnostics().constraint_residual)
     assert np.max(np.abs(residual)) < 1e-12
+
+
+def test_the_gradient_through_a_rolling_tree_equals_central_differences():
+    scene = _scene()
+    state = _state(scene, Q0, E0)
+
+    @jax.jit
+    def travel(rider_mass):
+        heavier = eqx.tree_at(
+            lambda s: s.system.mass, scene, scene.system.mass.at[0].set(rider_mass)
+        )
+        traj = bd.simulate(
+            heavier, state, 0.3, rtol=1e-10, atol=1e-10, saveat=diffrax.SaveAt(t1=True)
+        )
+        return traj.g[-1, 0, 3]
+
+    gradient = jax.grad(travel)(RIDER_MASS)
+    h = 1e-5
+    central = (travel(RIDER_MASS + h) - travel(RIDER_MASS - h)) / (2 * h)
+    assert abs(float(gradient)) > 1e-4  # the rider's mass moves the wheel
+    np.testing.assert_allclose(gradient, central, rtol=1e-6)
 
 
 def test_the_state_keeps_the_wheel_rolling_and_the_layout_gives_it_back():
