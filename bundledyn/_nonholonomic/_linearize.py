@@ -112,7 +112,7 @@ def _boundary_jvp(growth_rate, halvings, primals, tangents):
     root = _boundary(growth_rate, halvings, lower, upper, args)
     # Both derivatives in forward mode (v is a scalar): the growth rate is already a
     # derivative of the equations, and reverse mode over it compiles far larger programs.
-    along = lambda dv, dargs: jax.jvp(growth_rate, (root, args), (dv, dargs))[1]
-    slope = along(jnp.ones_like(root), jax.tree.map(jnp.zeros_like, tangents[2]))
-    moved = along(jnp.zeros_like(root), tangents[2])
+    # Each differentiates in its own variable only, the other closed over as a constant.
+    slope = jax.jvp(lambda v: growth_rate(v, args), (root,), (jnp.ones_like(root),))[1]
+    moved = jax.jvp(lambda p: growth_rate(root, p), (args,), (tangents[2],))[1]
     return root, -moved / slope
