@@ -63,6 +63,7 @@ from ._modes import (
     RollingMode,
     RollingWheelMode,
     SkatingMode,
+    Wheel,
 )
 from ._nonholonomic import (
     AbstractContactSurface,
@@ -251,6 +252,7 @@ __all__ = [
     "Trajectory",
     "Universal",
     "VariationalMidpoint",
+    "Wheel",
     "acceleration_energy",
     "appell_accelerations",
     "appell_body_rates",

@@ -31,6 +31,7 @@ from ._modes import (
     RollingMode,
     RollingWheelMode,
     SkatingMode,
+    Wheel,
 )
 from ._nonholonomic import (
     DiscContact,
@@ -434,7 +435,7 @@ def _contact(t: _Table, name: str) -> AbstractPlaneContactMode | RollingWheelMod
     make_mode, kinds, own = _CONTACTS[name]
     if name == "rolling" and t.has("wheel"):
         wheel = t.string("wheel")
-        make_mode = lambda surface, **plane: RollingWheelMode(surface, wheel=wheel, **plane)
+        make_mode = lambda surface, **plane: RollingWheelMode([Wheel(wheel, surface)], **plane)
     kind = t.string("surface", choices=set(kinds))
     make, numbers, vectors = _SURFACES[kind]
     arguments = {key: t.number(key) for key in numbers}
@@ -468,7 +469,7 @@ def _wheel_state(t: _Table, mode: RollingWheelMode, system):
     q, qdot = t.vector_or_scalar("q", d, 0.0), t.vector_or_scalar("qdot", d, 0.0)
     omega = t.array("omega", (3,), (0.0, 0.0, 0.0))
     t.done()
-    return mode.state(system, g, q, omega, qdot)
+    return mode.state(system, g, q, np.concatenate([omega, qdot]))
 
 
 def _contact_state(t: _Table, mode: AbstractPlaneContactMode):
@@ -536,7 +537,7 @@ class SceneFile:
       `centre`); the plane's `normal` (default up) and `offset`. Its `[initial]` takes
       `position`, `rotation` and the body angular velocity `omega` (the body is placed on
       the plane, its twist the rolling one); not with `[shape]`. With `wheel` (a body's
-      name), that body of a tree rolls (`RollingWheelMode`), and `[initial]` takes
+      name), that body of a tree rolls (`RollingWheelMode` with one `Wheel`), and `[initial]` takes
       `position`, `rotation`, the shape `q`, `qdot` and the section's angular velocity
       `omega`.
     - `[skating]`: the rigid body skates on a blade on a plane (`SkatingMode`): `surface` =

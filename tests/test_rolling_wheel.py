@@ -1,7 +1,9 @@
-"""A wheel of a multibody tree rolling without slipping (`RollingWheelMode`, seed 001 (76),
-(77), (82) on SE(3) × shape space), against an independent derivation: a unicycle (a rider
-hinged on a rolling disc's axle) in Euler angles, a `NonholonomicSystem` with its kinetic
-energy written out and its contact rows by autodiff."""
+"""Wheels of a multibody tree rolling without slipping (`RollingWheelMode`, seed 001 (76),
+(77), (82) on SE(3) × shape space), against independent derivations in generalized
+coordinates: a unicycle (a rider hinged on a rolling disc's axle) in Euler angles, a
+`NonholonomicSystem` with its kinetic energy written out and its contact rows by autodiff;
+and the benchmark bicycle as a tree on two wheels against `WhippleBicycle`, whose
+eigenvalues are the published benchmark's."""
 
 import functools
 
@@ -92,7 +94,7 @@ def _unicycle():
 
 def _scene(wheel="wheel"):
     tree = _unicycle()
-    mode = bd.RollingWheelMode(bd.DiscContact(DISC_RADIUS), wheel=wheel)
+    mode = bd.RollingWheelMode([bd.Wheel(wheel, bd.DiscContact(DISC_RADIUS))])
     return bd.Scene(tree, [bd.Gravity(GRAVITY)], mode=mode)
 
 
@@ -103,7 +105,8 @@ def _state(scene, q, e):
     g = jnp.eye(4).at[:3, :3].set(_rider_orientation(q))
     g = g.at[:3, 3].set(jnp.stack([q[0], q[1], DISC_RADIUS * jnp.cos(q[3])]))
     omega = _angular_velocity(_rider_orientation, q, qdot)
-    return scene.mode.state(scene.system, g, (q[4] - q[5])[None], omega, (e[2] - e[3])[None])
+    e = jnp.concatenate([omega, (e[2] - e[3])[None]])
+    return scene.mode.state(scene.system, g, (q[4] - q[5])[None], e)
 
 
 Q0 = jnp.array([0.1, -0.2, 0.3, 0.25, 0.4, -0.2])
@@ -167,7 +170,7 @@ def test_the_state_keeps_the_wheel_rolling_and_the_layout_gives_it_back():
     for name in ("g", "q", "xi", "qdot"):
         np.testing.assert_allclose(getattr(back, name), getattr(state, name), atol=1e-14)
     sliding = bd.State(state.g, state.q, state.xi.at[3].add(0.1), state.qdot)
-    with pytest.raises(Exception, match="does not keep the wheel rolling"):
+    with pytest.raises(Exception, match="does not keep the wheels rolling"):
         scene.mode.encode(scene, 0.0, sliding)
 
 
@@ -177,14 +180,30 @@ def test_the_state_keeps_the_wheel_rolling_and_the_layout_gives_it_back():
         (lambda: _scene(wheel="tyre"), "not one of the tree's bodies"),
         (lambda: _scene(wheel=2), "the tree has 2 bodies"),
         (
+            lambda: bd.RollingWheelMode(
+                [bd.Wheel("wheel", bd.DiscContact(0.2)), bd.Wheel("rider", bd.SphereContact(0.1))]
+            ),
+            "needs `independent`",
+        ),
+        (
+            lambda: bd.Scene(
+                _unicycle(),
+                [],
+                mode=bd.RollingWheelMode(
+                    [bd.Wheel("wheel", bd.DiscContact(0.2))], independent=(0, 1, 6)
+                ),
+            ),
+            "must name 4 different velocities",
+        ),
+        (
             lambda: bd.Scene(
                 bd.RigidBody(1.0, jnp.zeros(3), jnp.eye(3)),
                 [],
-                mode=bd.RollingWheelMode(bd.DiscContact(0.2), wheel=0),
+                mode=bd.RollingWheelMode([bd.Wheel(0, bd.DiscContact(0.2))]),
             ),
             "A single rolling body is `bd.RollingMode`",
         ),
-        (lambda: bd.RollingWheelMode(0.2, wheel="wheel"), "AbstractContactSurface"),
+        (lambda: bd.Wheel("wheel", 0.2), "AbstractContactSurface"),
     ],
 )
 def test_what_it_cannot_roll_is_refused_with_the_fix(build, message):
@@ -195,7 +214,7 @@ def test_what_it_cannot_roll_is_refused_with_the_fix(build, message):
 def test_the_shipped_unicycle_scene_is_the_tree_built_in_python():
     sf = bd.SceneFile.load(bd.scenes / "unicycle.toml")
     mode, tree = sf.scene.mode, sf.scene.system
-    assert isinstance(mode, bd.RollingWheelMode) and mode.wheel == "wheel"
+    assert isinstance(mode, bd.RollingWheelMode) and mode.wheels[0].body == "wheel"
     assert tree.names == ("rider", "wheel")
     for q in (0.0, 0.6, -2.0):
         np.testing.assert_allclose(
@@ -212,3 +231,119 @@ def test_the_shipped_unicycle_scene_is_the_tree_built_in_python():
         python.mode.body_field(python, 0.0, y), mode.body_field(sf.scene, 0.0, y), strict=True
     ):
         np.testing.assert_allclose(a, b, rtol=1e-13, atol=1e-13)
+
+
+# --- the benchmark bicycle as a tree on two rolling wheels -----------------------------------
+
+BIKE = bd.WhippleBicycle.benchmark()
+# The tree's bodies in order (the base first); `WhippleBicycle.placement` lists the rear
+# wheel first, then the rear frame.
+REAR_FRAME, REAR_WHEEL, FRONT_FRAME, FRONT_WHEEL = range(4)
+PLACED_REAR_WHEEL, PLACED_REAR_FRAME = 0, 1
+
+
+def _bicycle_tree(bike):
+    """The bicycle of Meijaard et al. (2007) as a tree, from the paper's parameters: the rear
+    frame is the floating base, its frame's origin at the rear wheel's centre and its axes the
+    paper's ($z$ down) at the upright reference; the rear wheel hinges on it, the front frame
+    turns about the steer axis, the front wheel hinges on the front frame."""
+    r_R, r_F, w, c, tilt = (
+        float(x)
+        for x in (
+            bike.rear_wheel_radius,
+            bike.front_wheel_radius,
+            bike.wheelbase,
+            bike.trail,
+            bike.steer_axis_tilt,
+        )
+    )
+
+    def point(x, z):  # a point given from the rear contact, from the rear wheel's centre
+        return np.array([x, 0.0, z + r_R])
+
+    def wheel(mass, inertia, centre):
+        diagonal = jnp.diag(jnp.array([inertia[0], inertia[1], inertia[0]]))
+        return bd.RigidBody(mass, centre, diagonal)
+
+    front_centre = point(w, -r_F)
+    steer_axis = (np.sin(tilt), 0.0, np.cos(tilt))
+    links = [
+        bd.Link(
+            wheel(bike.rear_wheel_mass, bike.rear_wheel_inertia, np.zeros(3)),
+            bd.Revolute((0.0, 1.0, 0.0)),
+            REAR_FRAME,
+            np.eye(4),
+        ),
+        bd.Link(
+            bd.RigidBody(
+                bike.front_frame_mass, point(*bike.front_frame_centre), bike.front_frame_inertia
+            ),
+            bd.Revolute(steer_axis, point(w + c, 0.0)),
+            REAR_FRAME,
+            np.eye(4),
+        ),
+        bd.Link(
+            wheel(bike.front_wheel_mass, bike.front_wheel_inertia, front_centre),
+            bd.Revolute((0.0, 1.0, 0.0), front_centre),
+            FRONT_FRAME,
+            np.eye(4),
+        ),
+    ]
+    base = bd.RigidBody(
+        bike.rear_frame_mass, point(*bike.rear_frame_centre), bike.rear_frame_inertia
+    )
+    tree = bd.Multibody(
+        base, links, names=("rear frame", "rear wheel", "front frame", "front wheel")
+    )
+    wheels = [
+        bd.Wheel("rear wheel", bd.DiscContact(r_R, axis=(0.0, 1.0, 0.0))),
+        bd.Wheel("front wheel", bd.DiscContact(r_F, axis=(0.0, 1.0, 0.0), centre=front_centre)),
+    ]
+    # The characteristics: the rear frame's body angular velocity about its forward axis
+    # (the roll rate at the upright reference), the rear wheel's rate and the steer rate.
+    mode = bd.RollingWheelMode(wheels, independent=(0, 6, 7), normal=(0.0, 0.0, -1.0))
+    return bd.Scene(tree, [bd.Gravity(float(bike.gravity), (0.0, 0.0, 1.0))], mode=mode)
+
+
+def _bicycle_state(scene, q, e):
+    """The tree's state of the bicycle's state `(q, e)`: the rear frame's pose and the
+    velocities the bicycle's constraints give, in the tree's variables."""
+    qdot = bd.constrained_velocities(BIKE.constraints, q, e, 0.0)
+    placed, moving = jax.jvp(BIKE.placement, (q,), (qdot,))
+    R, R_dot = placed.rotations[PLACED_REAR_FRAME], moving.rotations[PLACED_REAR_FRAME]
+    g = jnp.eye(4).at[:3, :3].set(R).at[:3, 3].set(placed.centres[PLACED_REAR_WHEEL])
+    shape = jnp.stack([q[6] - q[4], q[5], q[7]])
+    shape_rate = jnp.stack([qdot[6] - qdot[4], qdot[5], qdot[7]])
+    omega, v = bd.lie.so3_vee(R.T @ R_dot), R.T @ moving.centres[PLACED_REAR_WHEEL]
+    return scene.mode.state(scene.system, g, shape, jnp.concatenate([omega[:1], shape_rate[:2]])), (
+        omega,
+        v,
+    )
+
+
+@pytest.mark.slow
+def test_the_benchmark_bicycle_as_a_tree_on_two_wheels_moves_as_its_nonlinear_model():
+    scene = _bicycle_tree(BIKE)
+    q0, e0 = BIKE.steady_motion(4.6)
+    q0, e0 = BIKE.on_the_ground(q0.at[3].set(0.1).at[5].set(-0.05)), e0.at[1].set(0.5)
+    state, (omega, v) = _bicycle_state(scene, q0, e0)
+    # the tree's rolling rows give the bicycle's dependent velocities
+    np.testing.assert_allclose(state.xi, jnp.concatenate([omega, v]), rtol=0, atol=1e-12)
+    ts = jnp.linspace(0.0, 1.0, 5)
+    traj = bd.simulate(scene, state, 1.0, rtol=1e-11, atol=1e-11, saveat=diffrax.SaveAt(ts=ts))
+    reference = diffrax.diffeqsolve(
+        bd.NonholonomicTerm(BIKE), diffrax.Tsit5(), 0.0, 1.0, None, (q0, e0),
+        saveat=diffrax.SaveAt(ts=ts), max_steps=100_000,
+        stepsize_controller=diffrax.PIDController(rtol=1e-11, atol=1e-11),
+    )  # fmt: skip
+    placed = jax.vmap(BIKE.placement)(reference.ys[0])
+    np.testing.assert_allclose(traj.g[:, :3, :3], placed.rotations[:, PLACED_REAR_FRAME], atol=1e-9)
+    np.testing.assert_allclose(traj.g[:, :3, 3], placed.centres[:, PLACED_REAR_WHEEL], atol=1e-9)
+    np.testing.assert_allclose(traj.q[:, 1], reference.ys[0][:, 5], atol=1e-9)  # the steer
+    assert float(jnp.max(jnp.abs(reference.ys[0][:, 5] - q0[5]))) > 0.05  # it steers
+    energy = np.asarray(traj.energy())
+    np.testing.assert_allclose(energy, energy[0], rtol=1e-10)
+    residual = np.asarray(traj.diagnostics().constraint_residual)
+    assert np.max(np.abs(residual[:, :6])) < 1e-12  # both contacts at rest
+    assert np.max(np.abs(residual[:, 6])) < 1e-15  # the rear one on the ground, by the pose
+    assert np.max(np.abs(residual[:, 7])) < 1e-10  # the front one, to the solver's tolerance

@@ -14,7 +14,7 @@ from ._prescribed_base import PrescribedBaseMode, select as _select_prescribed_b
 from ._prescribed_shape import PrescribedShapeMode, select as _select_prescribed_shape
 from ._rigid_body import RigidBodyMode, select as _select_rigid_body
 from ._rolling import RollingMode
-from ._rolling_wheel import RollingWheelMode
+from ._rolling_wheel import RollingWheelMode, Wheel
 from ._skating import SkatingMode
 
 __all__ = [
@@ -38,6 +38,7 @@ __all__ = [
     "SELECTIONS",
     "SceneParts",
     "SkatingMode",
+    "Wheel",
     "floating_field",
     "frame_shift",
     "galilean_kinematics",
