@@ -429,24 +429,51 @@ _CONTACTS = {
 }
 
 
-def _contact(t: _Table, name: str) -> AbstractPlaneContactMode | RollingWheelMode:
-    """The `[rolling]` or `[skating]` table: a contact surface on a plane (of a tree's
-    `wheel`, if the rolling table names one)."""
-    make_mode, kinds, own = _CONTACTS[name]
-    if name == "rolling" and t.has("wheel"):
-        wheel = t.string("wheel")
-        make_mode = lambda surface, **plane: RollingWheelMode([Wheel(wheel, surface)], **plane)
+def _surface(t: _Table, kinds):
+    """A contact surface from a table's `surface` (one of `kinds`) and its numbers."""
     kind = t.string("surface", choices=set(kinds))
     make, numbers, vectors = _SURFACES[kind]
     arguments = {key: t.number(key) for key in numbers}
     for key in vectors:
         if key in _REQUIRED_VECTORS.get(kind, ()) or t.has(key):
             arguments[key] = t.array(key, (3,))
+    with t.building("surface"):
+        return make(**arguments)
+
+
+def _wheels(t: _Table, kinds) -> list[Wheel]:
+    """A rolling table's wheels: its one `wheel` (a body's name) on its surface, or its
+    `[[rolling.wheels]]`, each a `body` and a surface."""
+    if t.has("wheel"):
+        return [Wheel(t.string("wheel"), _surface(t, kinds))]
+    wheels = []
+    for table in t.tables("wheels"):
+        with table.building("body"):
+            wheels.append(Wheel(table.string("body"), _surface(table, kinds)))
+        table.done()
+    return wheels
+
+
+def _contact(t: _Table, name: str) -> AbstractPlaneContactMode | RollingWheelMode:
+    """The `[rolling]` or `[skating]` table: a body's contact surface on a plane, or a
+    tree's rolling wheels."""
+    make_mode, kinds, own = _CONTACTS[name]
     plane: dict[str, Any] = {key: t.array(key, (3,)) for key in own if t.has(key)}
     plane["normal"] = t.array("normal", (3,), (0.0, 0.0, 1.0))
     plane["offset"] = t.number("offset", 0.0)
-    with t.building("surface"):
-        mode = make_mode(make(**arguments), **plane)
+    if name == "rolling" and (t.has("wheel") or t.has("wheels")):
+        wheels = _wheels(t, kinds)
+        independent = t.raw("independent", None)
+        if independent is not None and not (
+            isinstance(independent, list) and all(type(i) is int for i in independent)
+        ):
+            raise t.fail("independent", "must be a list of whole numbers, indices into v.")
+        with t.building("wheels"):
+            mode = RollingWheelMode(wheels, independent=independent, **plane)
+    else:
+        surface = _surface(t, kinds)
+        with t.building("surface"):
+            mode = make_mode(surface, **plane)
     t.done()
     return mode
 
@@ -460,16 +487,21 @@ def _pose(t: _Table):
 
 
 def _wheel_state(t: _Table, mode: RollingWheelMode, system):
-    """`[initial]` of a tree rolling on a wheel: the pose (placed on the plane), the shape
-    `q`, `qdot` and the section's angular velocity `omega`."""
+    """`[initial]` of a tree rolling on wheels: the pose (placed on the plane), the shape
+    `q`, and the velocities `omega`, `velocity` (the section's, body frame) and `qdot`, of
+    which the mode's characteristics are kept and the others solved from the rolling."""
     if t.has("xi"):
-        raise t.fail("xi", "the twist of a rolling tree follows from `omega` and `qdot`.")
+        raise t.fail("xi", "a rolling tree's twist is `omega` and `velocity`.")
     g = _pose(t)
     d = system.shape_dim
     q, qdot = t.vector_or_scalar("q", d, 0.0), t.vector_or_scalar("qdot", d, 0.0)
     omega = t.array("omega", (3,), (0.0, 0.0, 0.0))
+    velocity = t.array("velocity", (3,), (0.0, 0.0, 0.0))
     t.done()
-    return mode.state(system, g, q, np.concatenate([omega, qdot]))
+    independent = mode.characteristics(d)
+    return mode.state(
+        system, g, q, np.concatenate([omega, velocity, qdot])[np.asarray(independent)]
+    )
 
 
 def _contact_state(t: _Table, mode: AbstractPlaneContactMode):
@@ -537,9 +569,11 @@ class SceneFile:
       `centre`); the plane's `normal` (default up) and `offset`. Its `[initial]` takes
       `position`, `rotation` and the body angular velocity `omega` (the body is placed on
       the plane, its twist the rolling one); not with `[shape]`. With `wheel` (a body's
-      name), that body of a tree rolls (`RollingWheelMode` with one `Wheel`), and `[initial]` takes
-      `position`, `rotation`, the shape `q`, `qdot` and the section's angular velocity
-      `omega`.
+      name), that body of a tree rolls (`RollingWheelMode` with one `Wheel`); with
+      `[[rolling.wheels]]` (each a `body` and its surface) and `independent`, several do.
+      Their `[initial]` takes `position`, `rotation`, the shape `q`, and `omega`,
+      `velocity` (the section's, body frame) and `qdot`, of which the velocities the
+      rolling leaves free are kept and the others solved for.
     - `[skating]`: the rigid body skates on a blade on a plane (`SkatingMode`): `surface` =
       `"point"` (`point`) or `"disc"` (a rockered blade: `radius`, `axis`, `centre`), the
       blade plane's normal `blade_axis` (default $(0, 1, 0)$), the plane's `normal` and

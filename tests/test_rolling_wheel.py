@@ -347,3 +347,24 @@ def test_the_benchmark_bicycle_as_a_tree_on_two_wheels_moves_as_its_nonlinear_mo
     assert np.max(np.abs(residual[:, :6])) < 1e-12  # both contacts at rest
     assert np.max(np.abs(residual[:, 6])) < 1e-15  # the rear one on the ground, by the pose
     assert np.max(np.abs(residual[:, 7])) < 1e-10  # the front one, to the solver's tolerance
+
+
+def test_the_shipped_bicycle_scene_is_the_tree_built_from_the_papers_parameters():
+    sf = bd.SceneFile.load(bd.scenes / "bicycle.toml")
+    python = _bicycle_tree(BIKE)
+    mode, tree = sf.scene.mode, sf.scene.system
+    assert isinstance(mode, bd.RollingWheelMode) and mode.independent == (0, 6, 7)
+    assert [w.body for w in mode.wheels] == ["rear wheel", "front wheel"]
+    assert tree.names == python.system.names
+    for q in ([0.0, 0.0, 0.0], [0.4, -0.3, 1.2]):
+        q = jnp.array(q)
+        np.testing.assert_allclose(tree.metric(q), python.system.metric(q), atol=1e-12)
+    # upright, both wheels on the ground and rolling, forward at 4.6 m/s, rolled at 0.5 rad/s
+    # about the rear contact, so the rear wheel's centre, 0.3 above it, moves sideways
+    np.testing.assert_allclose(mode.constraint_residual(sf.scene, sf.state), 0.0, atol=1e-14)
+    np.testing.assert_allclose(sf.state.xi, [0.5, 0.0, 0.0, 4.6, 0.5 * 0.3, 0.0], atol=1e-14)
+    y = python.mode.encode(python, 0.0, sf.state)
+    for a, b in zip(
+        python.mode.body_field(python, 0.0, y), mode.body_field(sf.scene, 0.0, y), strict=True
+    ):
+        np.testing.assert_allclose(a, b, rtol=1e-12, atol=1e-12)

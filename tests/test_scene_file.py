@@ -299,8 +299,26 @@ def test_shipped_sleigh_skates_on_its_blade():
             "point = [0, 0, 0]\n",
             "one of",
         ),
+        (
+            '[rolling]\nindependent = "all"\n[[rolling.wheels]]\nbody = "wheel"\n'
+            'surface = "disc"\nradius = 0.2\n',
+            "list of whole numbers",
+        ),
+        ('[rolling]\nwheel = "wheel"\nsurface = "disc"\nradius = 0.2\n', "multibody tree"),
+        ('[rolling]\n[[rolling.wheels]]\nsurface = "disc"\nradius = 0.2\n', "body"),
     ],
-    ids=["surface", "radius", "xi", "semi-axes", "blade surface", "blade point", "both"],
+    ids=[
+        "surface",
+        "radius",
+        "xi",
+        "semi-axes",
+        "blade surface",
+        "blade point",
+        "both",
+        "independent",
+        "wheel of a rigid body",
+        "wheel without a body",
+    ],
 )
 def test_a_rolling_table_names_its_mistakes(tmp_path, table, message):
     with pytest.raises(bd.SceneFileError, match=message):

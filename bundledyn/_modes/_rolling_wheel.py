@@ -141,11 +141,14 @@ class RollingWheelMode(AbstractFreeMotionMode):
             )
         check_shape("RollingWheelMode.offset", self.offset, ())
 
+    def characteristics(self, d: int) -> tuple[int, ...]:
+        r"""The characteristics' indices into $(\omega, v, \dot q)$ for a shape of `d` (static)."""
+        return (0, 1, 2, *range(6, 6 + d)) if self.independent is None else self.independent
+
     def _split(self, d: int):
         """The indices of the characteristics and of the velocities solved for (static)."""
-        n = 6 + d
-        independent = (0, 1, 2, *range(6, n)) if self.independent is None else self.independent
-        dependent = tuple(i for i in range(n) if i not in independent)
+        independent = self.characteristics(d)
+        dependent = tuple(i for i in range(6 + d) if i not in independent)
         return independent, dependent
 
     def check(self, system, frame):
