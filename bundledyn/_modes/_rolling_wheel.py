@@ -188,13 +188,24 @@ class RollingWheelMode(AbstractFreeMotionMode):
             points.append(p)
         return jnp.concatenate(rows), jnp.stack(points)
 
-    def _velocities(self, system, n, q, e):
-        r"""$v = H e$: the section's twist and the shape velocity of the characteristics."""
+    def _basis(self, system, n, q):
+        r"""$H$ `(6 + d, m)`: the identity on the characteristics, $-C_d^{-1}C_e$ on the others."""
         C, _ = self._contact_rows(system, n, q)
         independent, dependent = self._split(system.shape_dim)
         ind, dep = jnp.asarray(independent), jnp.asarray(dependent)
-        solved = jnp.linalg.solve(C[:, dep], -matmul(C[:, ind], e))
-        return jnp.zeros(C.shape[1], e.dtype).at[ind].set(e).at[dep].set(solved)
+        m = len(independent)
+        solved = jnp.linalg.solve(C[:, dep], -C[:, ind])
+        return (
+            jnp.zeros((C.shape[1], m), C.dtype)
+            .at[ind]
+            .set(jnp.eye(m, dtype=C.dtype))
+            .at[dep]
+            .set(solved)
+        )
+
+    def _velocities(self, system, n, q, e):
+        r"""$v = H e$: the section's twist and the shape velocity of the characteristics."""
+        return matmul(self._basis(system, n, q), e)
 
     def _section_normal(self, g):
         return matmul(g[:3, :3].T, self.normal)
@@ -274,13 +285,15 @@ class RollingWheelMode(AbstractFreeMotionMode):
         system = scene.system
         g, q, e, xi, qdot = self._parts(scene, y)
         n = self._section_normal(g)
-        H_of = lambda n, q: jax.jacfwd(lambda e: self._velocities(system, n, q, e))(e)
-        H, H_dot = jax.jvp(H_of, (n, q), (jnp.cross(n, xi[:3]), qdot))
+        # $\dot He$: the velocities' rate along the motion with $e$ held, one JVP.
+        velocities = lambda n, q: self._velocities(system, n, q, e)
+        _, H_dot_e = jax.jvp(velocities, (n, q), (jnp.cross(n, xi[:3]), qdot))
+        H = self._basis(system, n, q)
         F, Q = scene.forces(Kinematics(t, g, q, xi, qdot))
         free = jnp.concatenate(reference_accelerations(system, q, xi, qdot, F, Q))
         G = system.metric(q)
         HG = matmul(H.T, G)
-        e_dot = jnp.linalg.solve(matmul(HG, H), matmul(HG, free - matmul(H_dot, e)))
+        e_dot = jnp.linalg.solve(matmul(HG, H), matmul(HG, free - H_dot_e))
         return xi, jnp.concatenate([qdot, e_dot])
 
     def kinematics(self, scene: SceneParts, t, y):
