@@ -174,6 +174,17 @@ def test_the_state_keeps_the_wheel_rolling_and_the_layout_gives_it_back():
         scene.mode.encode(scene, 0.0, sliding)
 
 
+def test_independent_velocities_the_rolling_cannot_solve_around_are_located_and_raise():
+    # The section's linear velocity and the hinge's rate as characteristics: the contact's
+    # rows then have to give the angular velocity, but they see it only through p x omega,
+    # of rank two.
+    wheel = bd.Wheel("wheel", bd.DiscContact(DISC_RADIUS))
+    mode = bd.RollingWheelMode([wheel], independent=(3, 4, 5, 6))
+    scene = bd.Scene(_unicycle(), [], mode=mode)
+    with pytest.raises(Exception, match="choose other independent velocities"):
+        mode.state(scene.system, jnp.eye(4), jnp.zeros(1), jnp.zeros(4))
+
+
 @pytest.mark.parametrize(
     "build, message",
     [

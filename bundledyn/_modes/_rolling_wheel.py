@@ -39,6 +39,7 @@ from .._dynamics import reference_accelerations
 from .._effects import Kinematics
 from .._geometry import locked_velocity
 from .._linalg import matmul
+from .._nonholonomic._constraints import rank_checked
 from .._nonholonomic._contact import AbstractContactSurface, unit_axis
 from .._state import State
 from .._systems._multibody import AbstractMultibody
@@ -48,6 +49,18 @@ from ._floating import body_twist, checked_shape
 from ._plane_contact import CONSISTENCY
 
 __all__ = ["RollingWheelMode", "Wheel"]
+
+# As `PfaffianConstraints`' default: a block whose smallest singular value is below this
+# fraction of the rows' largest cannot be solved for to useful accuracy.
+_RANK_TOLERANCE = 1e-8
+_PARTITION_SINGULAR = (
+    "the wheels' rolling constraints do not determine the velocities left out of "
+    "`RollingWheelMode.independent` here: choose other independent velocities."
+)
+_RANK_LOST = (
+    "the wheels' rolling constraints lost rank here (two contacts constrain the same "
+    "motion, e.g. a wheel lying flat): the state is singular for this mode."
+)
 
 
 class Wheel(eqx.Module):
@@ -194,6 +207,9 @@ class RollingWheelMode(AbstractFreeMotionMode):
         independent, dependent = self._split(system.shape_dim)
         ind, dep = jnp.asarray(independent), jnp.asarray(dependent)
         m = len(independent)
+        C = rank_checked(
+            C, C[:, dep], _RANK_TOLERANCE, _PARTITION_SINGULAR, whole=C, whole_message=_RANK_LOST
+        )
         solved = jnp.linalg.solve(C[:, dep], -C[:, ind])
         return (
             jnp.zeros((C.shape[1], m), C.dtype)
