@@ -5,13 +5,16 @@ import numpy as np
 
 from benchmarks import _output
 from benchmarks._provenance import report_header
-from benchmarks.nonholonomic import bicycle, disc
+from benchmarks.nonholonomic import bicycle, bicycle_tree, disc
 from benchmarks.nonholonomic.measure import first_answers, member_runs, model_sides
 from benchmarks.nonholonomic.report import markdown
 
-DESCRIPTION = "Rolling bodies (the leaning disc, the Whipple bicycle) against sympy's KanesMethod."
+DESCRIPTION = (
+    "Rolling bodies (the leaning disc, the Whipple bicycle, the bicycle as a tree) against "
+    "sympy's KanesMethod."
+)
 PACKAGES = ("bundledyn", "jax", "jaxlib", "diffrax", "equinox", "sympy", "scipy", "numpy")
-PROBLEMS = (disc, bicycle)
+PROBLEMS = (disc, bicycle, bicycle_tree)
 
 
 def measure(quick, repeats):

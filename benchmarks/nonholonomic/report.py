@@ -71,8 +71,10 @@ def markdown(report):
     lines += [
         "The peer is what a sympy user runs: `KanesMethod` with velocity constraints and "
         "dependent speeds, `lambdify` with common subexpressions, scipy's `DOP853`; bundledyn "
-        "runs `RollingMode` (the disc, `simulate`'s `RKMK87`) and `WhippleBicycle` "
-        "(`NonholonomicTerm`, diffrax's `Dopri8`). Both at rtol = atol = 1e-10; times per "
+        "runs `RollingMode` (the disc, `simulate`'s `RKMK87`), `WhippleBicycle` "
+        "(`NonholonomicTerm`, diffrax's `Dopri8`) and the same bicycle as a tree on two "
+        "rolling wheels (the shipped scene `bicycle.toml`, `RollingWheelMode`, `simulate`'s "
+        "`RKMK87`). Both at rtol = atol = 1e-10; times per "
         "simulated second in alternation, the first answer cold (`benchmarks/nonholonomic`).",
         "",
     ]
