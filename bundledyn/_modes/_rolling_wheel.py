@@ -301,15 +301,13 @@ class RollingWheelMode(AbstractFreeMotionMode):
         system = scene.system
         g, q, e, xi, qdot = self._parts(scene, y)
         n = self._section_normal(g)
-        # $\dot He$: the velocities' rate along the motion with $e$ held, one JVP.
-        velocities = lambda n, q: self._velocities(system, n, q, e)
-        _, H_dot_e = jax.jvp(velocities, (n, q), (jnp.cross(n, xi[:3]), qdot))
-        H = self._basis(system, n, q)
+        basis = lambda n, q: self._basis(system, n, q)
+        H, H_dot = jax.jvp(basis, (n, q), (jnp.cross(n, xi[:3]), qdot))
         F, Q = scene.forces(Kinematics(t, g, q, xi, qdot))
         free = jnp.concatenate(reference_accelerations(system, q, xi, qdot, F, Q))
         G = system.metric(q)
         HG = matmul(H.T, G)
-        e_dot = jnp.linalg.solve(matmul(HG, H), matmul(HG, free - H_dot_e))
+        e_dot = jnp.linalg.solve(matmul(HG, H), matmul(HG, free - matmul(H_dot, e)))
         return xi, jnp.concatenate([qdot, e_dot])
 
     def kinematics(self, scene: SceneParts, t, y):
