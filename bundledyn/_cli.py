@@ -85,7 +85,8 @@ def _summary(scene_file, traj, diagnostics, elapsed):
     residual = np.asarray(diagnostics.constraint_residual)
     if residual.shape[-1]:
         print(
-            f"  constraints ({type(scene.mode).__name__}): largest residual {np.abs(residual).max():.1e}"
+            f"  constraints kept ({type(scene.mode).__name__}, {type(scene.system).__name__}): "
+            f"largest residual {np.abs(residual).max():.1e}"
         )
 
 

@@ -19,7 +19,8 @@ from ._state import State
 class Diagnostics(NamedTuple):
     """What users check first of a trajectory, each at every saved time: the energy and the
     spatial momentum in the Galilean frame, the rotations' orthogonality error and the
-    residuals of the constraints the scene's mode keeps (`r = 0` rows if none)."""
+    residuals of the constraints the scene's mode keeps and the system eliminates (`r = 0`
+    rows if none)."""
 
     energy: Float[Array, " n"]
     spatial_momentum: Float[Array, "n 6"]
@@ -109,10 +110,13 @@ class Trajectory(eqx.Module):
     @eqx.filter_jit
     def constraint_residual(self) -> Float[Array, "n r"]:
         """The residuals of the constraints the scene's mode keeps (`AbstractMode.constraint_residual`:
-        a rolling body's contact velocity and height) at every saved time; `r = 0` if none."""
+        a rolling body's contact velocity and height), then those the system eliminates
+        (`AbstractSystem.constraint_residual`: a `ConstrainedSystem`'s $f(q)$), at every saved
+        time; `r = 0` if none."""
         mode, scene = self.scene.mode, self.scene
 
         def residual(g, q, xi, qdot):
-            return mode.constraint_residual(scene, State(g, q, xi, qdot))
+            kept = mode.constraint_residual(scene, State(g, q, xi, qdot))
+            return jnp.concatenate([kept, scene.system.constraint_residual(q).astype(kept.dtype)])
 
         return jax.vmap(residual)(self.g, self.q, self.xi, self.qdot)

@@ -15,7 +15,10 @@ PACKAGE = pathlib.Path(bundledyn.__file__).parent
 # The layers of architecture §4.1 (docs/devdocs/architecture.md), lowest first: a module may
 # import its own layer and those before it.
 LAYERS = (
-    ("lie", {"_lie", "lie", "_linalg", "_validation", "_xla_flags", "_files", "_paths"}),
+    (
+        "lie",
+        {"_lie", "lie", "_linalg", "_implicit", "_validation", "_xla_flags", "_files", "_paths"},
+    ),
     ("systems", {"_systems", "_solids", "_state", "_precision"}),
     ("geometry", {"_geometry", "_holonomy"}),
     ("dynamics", {"_dynamics", "_dynamics_vjp", "_nonholonomic"}),

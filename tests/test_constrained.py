@@ -75,13 +75,15 @@ def test_the_constrained_motion_is_the_one_with_lagrange_multipliers():
 
 
 def _energy_kept_through_simulate(scene, state, constraints):
-    """Simulate 1 s, check the energy is kept to 1e-9, and return the first free coordinate
-    along the solve and the largest residual of the constraints at the full shapes."""
+    """Simulate 1 s, check the energy is kept to 1e-9 and that the trajectory reports the
+    constraints' residual at the full shapes, and return the first free coordinate along the
+    solve and the largest residual."""
     ts = jnp.linspace(0.0, 1.0, 11)
     traj = bd.simulate(scene, state, 1.0, rtol=1e-11, atol=1e-11, saveat=diffrax.SaveAt(ts=ts))
     energy = np.asarray(traj.energy())
     np.testing.assert_allclose(energy, energy[0], rtol=1e-9)
     residual = jax.vmap(lambda p: constraints.residual(constraints(p)))(traj.q)
+    np.testing.assert_allclose(traj.constraint_residual(), residual, rtol=0, atol=1e-15)
     return np.asarray(traj.q[:, 0]), float(jnp.max(jnp.abs(residual)))
 
 
@@ -353,6 +355,20 @@ def test_a_closed_loop_moves_as_with_lagrange_multipliers():
         for a, b in zip(ours, reference, strict=True):
             scale = float(jnp.max(jnp.abs(b)))
             np.testing.assert_allclose(a, b, rtol=0, atol=1e-11 * scale)
+
+
+def test_a_constraint_closing_over_a_parameter_is_differentiated_in_it():
+    """f(q) = q₀² + q₁² - ρ², a plain function closing over ρ: under `jax.grad` in ρ the
+    dependent q₁ = √(ρ² - q₀²) has the derivative ρ/√(ρ² - q₀²) (to 1e-12), the closed-over
+    tracer carried as a leaf rather than frozen as a constant."""
+
+    def height(radius, p):
+        circle = lambda q: jnp.stack([q[0] ** 2 + q[1] ** 2 - radius**2])
+        return bd.ImplicitConstraints(2, circle, dependent=(1,), reference=(0.0, 1.0))(p)[1]
+
+    radius, p = jnp.array(1.3), jnp.array([0.5])
+    derivative = jax.jit(jax.grad(height))(radius, p)
+    np.testing.assert_allclose(derivative, radius / jnp.sqrt(radius**2 - p[0] ** 2), rtol=1e-12)
 
 
 # Simulating differentiates the Newton solve twice (the pulled-back metric's jet): one of the

@@ -33,6 +33,7 @@ from ._contact import (
 )
 from ._covariants import bilinear_covariants
 from ._equations import AbstractNonholonomicEquations, AppellEquations, MaggiEquations
+from ._holonomic import HolonomicConstraints
 from ._linearize import linearization, stability_boundary
 from ._maggi import (
     characteristic_forces,
@@ -60,6 +61,7 @@ __all__ = [
     "ChaplyginSleigh",
     "DiscContact",
     "EllipsoidContact",
+    "HolonomicConstraints",
     "PointContact",
     "MaggiEquations",
     "NonholonomicSystem",

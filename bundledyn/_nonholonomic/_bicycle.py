@@ -9,6 +9,7 @@ import numpy as np
 from jaxtyping import Array, Float
 
 from .. import lie
+from .._implicit import implicit_root
 from .._validation import check_shape, concrete
 from ._constraints import AbstractKinematicConstraints
 from ._equations import AbstractNonholonomicEquations, MaggiEquations
@@ -487,27 +488,27 @@ class _RollingWheels(eqx.Module):
         return jax.jacfwd(velocity)(jnp.zeros_like(q))
 
 
-@jax.custom_jvp
 def _pitch(bicycle, roll, steer):
+    return implicit_root((bicycle, roll, steer), residual=_front_height, solve=_pitch_by_newton)
+
+
+def _front_height(inputs, pitch):
+    bicycle, roll, steer = inputs
+    return bicycle.front_contact_height(pitch, roll, steer)
+
+
+def _pitch_by_newton(inputs):
+    bicycle, roll, _ = inputs
+
     def newton(_, pitch):
-        height, slope = jax.value_and_grad(bicycle.front_contact_height)(pitch, roll, steer)
+        height, slope = jax.value_and_grad(_front_height, argnums=1)(inputs, pitch)
         return pitch - height / slope
 
     pitch = jax.lax.fori_loop(0, _NEWTON_STEPS, newton, jnp.zeros_like(roll))
-    residual = jnp.abs(bicycle.front_contact_height(pitch, roll, steer))
+    residual = jnp.abs(_front_height(inputs, pitch))
     return eqx.error_if(
         pitch,
         ~(residual <= 1e-12 * bicycle.front_wheel_radius),
         "WhippleBicycle.pitch: Newton's method did not bring the front wheel to the ground at "
         "this roll and steer (no pitch puts both wheels on the ground).",
     )
-
-
-@_pitch.defjvp
-def _pitch_jvp(primals, tangents):
-    bicycle, roll, steer = primals
-    pitch = _pitch(bicycle, roll, steer)
-    slope = jax.grad(bicycle.front_contact_height)(pitch, roll, steer)
-    height = lambda b, r, s: b.front_contact_height(pitch, r, s)
-    _, moved = jax.jvp(height, primals, tangents)
-    return pitch, -moved / slope

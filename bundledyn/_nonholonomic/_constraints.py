@@ -184,6 +184,33 @@ class AbstractKinematicConstraints(eqx.Module):
         A non-negative scalar.
         """
 
+    def on_the_constraints(self, q: Float[Array, " n"], t) -> Float[Array, " n"]:
+        r"""$q$ carried onto the holonomic constraints the kinematic ones include, where the
+        field is evaluated; $q$ itself when they include none.
+
+        **Arguments:**
+
+        - `q`: the coordinates, shape `(n,)`; `t`: the time.
+
+        **Returns:**
+
+        The configuration on the holonomic constraints, shape `(n,)`.
+        """
+        return q
+
+    def holonomic_residual(self, q: Float[Array, " n"], t) -> Float[Array, " h"]:
+        r"""$f(q, t)$ of the holonomic constraints included, zero on them; empty when none.
+
+        **Arguments:**
+
+        - `q`: the coordinates, shape `(n,)`; `t`: the time.
+
+        **Returns:**
+
+        The residual, shape `(h,)`.
+        """
+        return jnp.zeros((0,), q.dtype)
+
 
 def constrained_velocities(
     constraints: AbstractKinematicConstraints, q: Float[Array, " n"], e: Float[Array, " nu"], t

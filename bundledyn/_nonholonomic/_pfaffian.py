@@ -13,6 +13,7 @@ from ._constraints import (
     rank_checked,
     smallest_singular_value,
 )
+from ._holonomic import HolonomicConstraints
 
 _RANK_LOST = (
     "The Pfaffian constraints b(q, t) (76) lose rank here: their rows are linearly dependent "
@@ -58,9 +59,14 @@ class PfaffianConstraints(AbstractKinematicConstraints):
     `constraint_singular_value` is $\sigma_{\min}(b)$, zero where the constraints lose rank.
     At run time both raise (`equinox.error_if`, inside `jit` and `grad` too).
 
+    Holonomic constraints $f(q, t) = 0$ (`HolonomicConstraints`, `holonomic`) join as the
+    rows $\partial_q f\,\dot q + \partial_t f = 0$ below the others; their dependent
+    coordinates must be among the dependent velocities, and `on_the_constraints` keeps the
+    configuration on $f = 0$ where the field is evaluated.
+
     **Arguments:**
 
-    - `b`: `b(q, t) -> (s, n)`, the rows $b_{jh}$.
+    - `b`: `b(q, t) -> (s, n)`, the rows $b_{jh}$; `None` where `holonomic` gives every row.
     - `independent`: the indices of the $\nu = n - s$ coordinates whose velocities are the
       characteristics $e$, in the order of $e$ (static).
     - `b0`: `b0(q, t) -> (s,)`, the terms $b_{j0}$; `None` (the default) for constraints that
@@ -68,22 +74,38 @@ class PfaffianConstraints(AbstractKinematicConstraints):
     - `rank_tolerance`: $b$ counts as having lost rank where $\sigma_{\min}(b) \le$
       `rank_tolerance` $\sigma_{\max}(b)$, and the choice as failing where
       $\sigma_{\min}(b_D) \le$ `rank_tolerance` $\sigma_{\max}(b)$ (default `1e-8`).
+    - `holonomic`: a `HolonomicConstraints`, or `None` (the default). With it, $s$ counts
+      its rows too: `b` gives $s - h$.
     """
 
-    b: Callable
+    b: Callable | None
     independent: tuple[int, ...] = eqx.field(static=True)
     b0: Callable | None = None
     rank_tolerance: float = eqx.field(static=True, default=1e-8)
+    holonomic: HolonomicConstraints | None = None
 
-    def __init__(self, b, independent, b0=None, rank_tolerance=1e-8):
+    def __init__(self, b, independent, b0=None, rank_tolerance=1e-8, holonomic=None):
         self.b = b
         self.independent = tuple(int(i) for i in independent)
         self.b0 = b0
         self.rank_tolerance = float(rank_tolerance)
+        self.holonomic = holonomic
 
     def __check_init__(self):
-        if not callable(self.b):
+        if self.holonomic is not None and not isinstance(self.holonomic, HolonomicConstraints):
+            raise ValueError(
+                "`PfaffianConstraints.holonomic` must be a `HolonomicConstraints`, or None; got "
+                f"{type(self.holonomic).__name__}."
+            )
+        if self.b is None and self.holonomic is None:
+            raise ValueError(
+                "`PfaffianConstraints` needs rows: give `b(q, t)`, `holonomic=` "
+                "`HolonomicConstraints(f, dependent)`, or both."
+            )
+        if self.b is not None and not callable(self.b):
             raise ValueError("`PfaffianConstraints.b` must be a callable b(q, t) -> (s, n) array.")
+        if self.b is None and self.b0 is not None:
+            raise ValueError("`PfaffianConstraints.b0` is given without the rows `b` it goes with.")
         if self.b0 is not None and not callable(self.b0):
             raise ValueError(
                 "`PfaffianConstraints.b0` must be a callable b0(q, t) -> (s,) array, or None "
@@ -99,9 +121,19 @@ class PfaffianConstraints(AbstractKinematicConstraints):
             raise ValueError(
                 f"`PfaffianConstraints.rank_tolerance` must be in (0, 1), got {self.rank_tolerance}."
             )
+        held = set(self.independent) & set(
+            () if self.holonomic is None else self.holonomic.dependent
+        )
+        if held:
+            raise ValueError(
+                f"`PfaffianConstraints`: coordinates {sorted(held)} are solved for by the "
+                "holonomic constraints and listed as independent; their velocities follow from "
+                "the constraints, so take them out of `independent`."
+            )
 
     def rows(self, q, t):
-        r"""$b(q, t)$ and $b_0(q, t)$ of (76), their shapes checked against `independent`.
+        r"""$b(q, t)$ and $b_0(q, t)$ of (76), the holonomic rows last, their shapes checked
+        against `independent`.
 
         **Arguments:**
 
@@ -112,22 +144,57 @@ class PfaffianConstraints(AbstractKinematicConstraints):
         `(b, b0)` of shapes `(s, n)` and `(s,)` ($b_0 = 0$ when not given).
         """
         t = as_time(t, q)
-        b = jnp.asarray(self.b(q, t))
         n, nu = q.shape[0], len(self.independent)
-        if b.shape != (n - nu, n) or max(self.independent) >= n:
+        h = 0 if self.holonomic is None else len(self.holonomic.dependent)
+        if max(self.independent) >= n:
+            raise ValueError(
+                f"`PfaffianConstraints.independent` = {self.independent} names coordinates "
+                f"beyond the system's {n}."
+            )
+        parts = [] if self.b is None else [self._given_rows(q, t, n - nu - h)]
+        if self.holonomic is not None:
+            parts.append(self.holonomic.rows(q, t))
+        b = jnp.concatenate([rows for rows, _ in parts])
+        if b.shape[0] != n - nu:
             raise ValueError(
                 f"`PfaffianConstraints`: with n = {n} coordinates and independent = "
-                f"{self.independent}, b(q, t) must have shape ({n - nu}, {n}) (one row per "
-                f"constraint, s = n - nu) and the indices must be < {n}; b has shape {b.shape}."
+                f"{self.independent}, the constraints need s = {n - nu} rows; the holonomic "
+                f"constraints give {h} and `b` none."
+            )
+        return b, jnp.concatenate([b0 for _, b0 in parts]).astype(b.dtype)
+
+    def _given_rows(self, q, t, s):
+        """`b(q, t)` and `b0(q, t)` as given, checked to have `s` rows."""
+        b = jnp.asarray(self.b(q, t))  # pyright: ignore[reportOptionalCall]
+        n = q.shape[0]
+        if b.shape != (s, n):
+            raise ValueError(
+                f"`PfaffianConstraints`: with n = {n} coordinates, independent = "
+                f"{self.independent} and {n - len(self.independent) - s} holonomic rows, "
+                f"b(q, t) must have shape ({s}, {n}) (one row per constraint); b has shape "
+                f"{b.shape}."
             )
         if self.b0 is None:
-            return b, jnp.zeros(n - nu, b.dtype)
+            return b, jnp.zeros(s, b.dtype)
         b0 = jnp.asarray(self.b0(q, t))
-        if b0.shape != (n - nu,):
+        if b0.shape != (s,):
             raise ValueError(
-                f"`PfaffianConstraints.b0(q, t)` must have shape ({n - nu},); got {b0.shape}."
+                f"`PfaffianConstraints.b0(q, t)` must have shape ({s},); got {b0.shape}."
             )
         return b, b0
+
+    def on_the_constraints(self, q, t):
+        r"""$q$ with the holonomic constraints' dependent coordinates solved for
+        (`HolonomicConstraints.on_the_constraints`); $q$ itself without them."""
+        if self.holonomic is None:
+            return q
+        return self.holonomic.on_the_constraints(q, t)
+
+    def holonomic_residual(self, q, t):
+        r"""$f(q, t)$ of the holonomic constraints; empty without them."""
+        if self.holonomic is None:
+            return super().holonomic_residual(q, t)
+        return self.holonomic.residual(q, t)
 
     def _partition(self, n):
         independent = np.asarray(self.independent)

@@ -3,6 +3,7 @@ r"""A nonholonomic system's equations (77) with (82) or §60 as a diffrax term o
 import diffrax
 import equinox as eqx
 import jax.tree_util as jtu
+from jaxtyping import Array, Float
 
 from ._constraints import as_time, constrained_velocities
 from ._equations import AbstractNonholonomicEquations, MaggiEquations
@@ -16,6 +17,7 @@ def _field(system, equations, t, y):
     # derivative, instead of tracing and differentiating the autodiff assembly each time.
     q, e = y
     t = as_time(t, q)
+    q = system.constraints.on_the_constraints(q, t)
     return constrained_velocities(system.constraints, q, e, t), equations.accelerations(
         system, q, e, t
     )
@@ -26,7 +28,8 @@ class NonholonomicTerm(diffrax.AbstractTerm):
 
     The field is $\dot q = \eta(q, t)\,e + \eta_0(q, t)$ (77) and $\dot e$ from `equations`
     (Maggi's (82) by default, or Appell's, §60), the normal form of §55 in $n + \nu$
-    unknowns. It behaves as `diffrax.ODETerm`, so any diffrax solver, step-size controller,
+    unknowns, evaluated with $q$ on the holonomic constraints the system's kinematic ones
+    include (`on_the_constraints`). It behaves as `diffrax.ODETerm`, so any diffrax solver, step-size controller,
     `SaveAt` and adjoint work with it, inside `jax.jit`, `jax.vmap` and `jax.grad`:
 
     ```python
@@ -63,6 +66,24 @@ class NonholonomicTerm(diffrax.AbstractTerm):
     def vf(self, t, y, args):
         r"""$(\dot q, \dot e)$ at the state `y = (q, e)` and time `t`."""
         return _field(self.system, self.equations, t, y)
+
+    def constraint_residual(self, t, y) -> Float[Array, " h"]:
+        r"""$f(q, t)$ of the system's holonomic constraints at the integrated configuration.
+
+        The field is evaluated on the constraints (`on_the_constraints`), so this is the
+        integrator's error in the dependent coordinates; `jax.vmap` it over a solution's
+        `ts` and `ys`.
+
+        **Arguments:**
+
+        - `t`: the time; `y`: the state $(q, e)$.
+
+        **Returns:**
+
+        The residual, shape `(h,)`; empty for a system without holonomic constraints.
+        """
+        q, _ = y
+        return self.system.constraints.holonomic_residual(q, as_time(t, q))
 
     def contr(self, t0, t1, **kwargs):
         return t1 - t0

@@ -58,6 +58,21 @@ class AbstractSystem(eqx.Module):
         An `AbstractMetricJet`.
         """
 
+    def constraint_residual(self, q: Float[Array, " d"]) -> Float[Array, " r"]:
+        """The residuals of the constraints among shape coordinates the system eliminates, at
+        its shape `q`: zero where they hold; empty (`r = 0`) for a system that has none, which
+        is every system but a `ConstrainedSystem`.
+
+        **Arguments:**
+
+        - `q`: shape coordinates, shape `(d,)`.
+
+        **Returns:**
+
+        The residuals, shape `(r,)`.
+        """
+        return jnp.zeros((0,), q.dtype)
+
     @abc.abstractmethod
     def checked(self) -> "AbstractSystem":
         """The system with run-time checks of its parameters attached (`equinox.error_if`).

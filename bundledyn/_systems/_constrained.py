@@ -19,6 +19,7 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Float
 
+from .._implicit import implicit_root
 from ._base import AbstractSystem, autodiff_metric_jet
 
 __all__ = [
@@ -226,22 +227,27 @@ class ImplicitConstraints(AbstractHolonomicConstraints):
 
     def __call__(self, p):
         r"""$q = \Phi(p)$: `p` and the dependent coordinates Newton's method solves for."""
-        dynamic, static = eqx.partition(self, eqx.is_inexact_array)
-        return self._assembled(p, _dependent_values(dynamic, p, static=static))
+        # A closure over traced values (a parameter being differentiated) becomes a module
+        # holding them as leaves, so that they are differentiated, not taken as static.
+        example = self._assembled(p, jnp.zeros(len(self.dependent), p.dtype))
+        function = eqx.filter_closure_convert(self.function, example)
+        constraints = ImplicitConstraints(self.shape_dim, function, self.dependent, self.reference)
+        s = implicit_root((constraints, p), residual=_on_the_constraints, solve=_continued_newton)
+        return self._assembled(p, s)
 
 
-def _on_the_constraints(constraints, p, s):
+def _on_the_constraints(inputs, s):
+    constraints, p = inputs
     return constraints.residual(constraints._assembled(p, s))
 
 
-@eqx.filter_custom_jvp
-def _dependent_values(dynamic, p, *, static):
-    constraints = eqx.combine(dynamic, static)
+def _continued_newton(inputs):
+    constraints, p = inputs
     reference = constraints.reference.astype(p.dtype)
     p0 = constraints.free_coordinates(reference)
 
     def solved(target, s):
-        f = lambda s: _on_the_constraints(constraints, target, s)
+        f = lambda s: _on_the_constraints((constraints, target), s)
         newton = lambda _, s: s - jnp.linalg.solve(jax.jacfwd(f)(s), f(s))
         return jax.lax.fori_loop(0, _NEWTON_STEPS, newton, s)
 
@@ -257,41 +263,14 @@ def _dependent_values(dynamic, p, *, static):
         lambda carry: carry[0] < stages, stage, (jnp.zeros_like(stages), start)
     )
     s = solved(p, s)
-    f = lambda s: _on_the_constraints(constraints, p, s)
     size = 1.0 + jnp.sqrt(jnp.sum(p**2) + jnp.sum(s**2))
     return eqx.error_if(
         s,
-        ~(jnp.max(jnp.abs(f(s))) <= 1e-10 * size),
+        ~(jnp.max(jnp.abs(_on_the_constraints(inputs, s))) <= 1e-10 * size),
         "ImplicitConstraints: Newton's method did not solve f(q) = 0 for the dependent "
         "coordinates here: the configuration left the basin of the reference's branch, or "
         "df/ds is singular. Give a `reference` nearer this motion, or other dependent "
         "coordinates.",
-    )
-
-
-@_dependent_values.def_jvp
-def _dependent_values_jvp(primals, tangents, *, static):
-    dynamic, p = primals
-    s = _dependent_values(dynamic, p, static=static)
-
-    def at_solution(dynamic, p):
-        return _on_the_constraints(eqx.combine(dynamic, static), p, s)
-
-    tangents = tuple(_zeros_for_none(x, t) for x, t in zip(primals, tangents, strict=True))
-    _, moved = jax.jvp(at_solution, primals, tangents)
-    slope = jax.jacfwd(lambda s: _on_the_constraints(eqx.combine(dynamic, static), p, s))(s)
-    return s, -jnp.linalg.solve(slope, moved)
-
-
-def _zeros_for_none(primal, tangent):
-    """`tangent` with zeros for `primal`'s arrays it leaves undifferentiated (`None`)."""
-    if tangent is None:
-        return jax.tree.map(jnp.zeros_like, primal)
-    return jax.tree.map(
-        lambda t, x: jnp.zeros_like(x) if t is None and x is not None else t,
-        tangent,
-        primal,
-        is_leaf=lambda t: t is None,
     )
 
 
@@ -354,6 +333,11 @@ class ConstrainedSystem(AbstractSystem):
 
     def metric_jet(self, q):
         return autodiff_metric_jet(self, q)
+
+    def constraint_residual(self, q):
+        r"""$f(\Phi(p))$ at the free coordinates `q` $= p$: zero to Newton's tolerance
+        ($10^{-10}(1 + |q|)$, `ImplicitConstraints`) or to rounding (`JointCoupling`)."""
+        return self.constraints.residual(self.constraints(q))
 
     def checked(self) -> "ConstrainedSystem":
         """The system with its unconstrained system's run-time checks."""
