@@ -144,6 +144,25 @@ from ._systems._mujoco_import import FixedTendon, ModelParts, parts_from_mjcf, p
 from ._systems._mujoco_state import state_from_mujoco, state_to_mujoco
 from ._systems._multibody import AbstractMultibody, Multibody, Resectioned
 from ._systems._rigid_body import RigidBody, spatial_inertia
+from ._tensorial import (
+    AbstractTensorialRKMK,
+    AbstractTensorialSystem,
+    LagrangeGyroscopeChain,
+    TensorCoordinates,
+    TensorialInterpolation,
+    TensorialRKMK4,
+    TensorialRKMK54,
+    TensorialRKMK87,
+    TensorialSystem,
+    TensorialTerm,
+    TensorVelocities,
+    accelerations_of,
+    lagrange_bracket,
+    projected,
+    rates_of,
+    tensorial_accelerations,
+    tensorial_equations,
+)
 from ._term import AbstractBodyTerm, AbstractSceneTerm, SceneTerm
 from ._trajectory import Diagnostics, Trajectory
 from ._xla_flags import CPU_XLA_FLAGS, use_cpu_xla_flags
@@ -318,4 +337,21 @@ __all__ = [
     "stress",
     "system_of_parts",
     "use_cpu_xla_flags",
+    "AbstractTensorialRKMK",
+    "AbstractTensorialSystem",
+    "TensorCoordinates",
+    "TensorialInterpolation",
+    "TensorialRKMK4",
+    "TensorialRKMK54",
+    "TensorialRKMK87",
+    "TensorialSystem",
+    "TensorialTerm",
+    "TensorVelocities",
+    "accelerations_of",
+    "lagrange_bracket",
+    "projected",
+    "rates_of",
+    "tensorial_accelerations",
+    "tensorial_equations",
+    "LagrangeGyroscopeChain",
 ]

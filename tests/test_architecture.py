@@ -25,6 +25,7 @@ LAYERS = (
     ("scene", {"_effects", "_coupled_effects", "_frames", "_modes", "_scene"}),
     ("term", {"_term", "_reverse_term"}),
     ("integrators", {"_solver"}),
+    ("tensorial", {"_tensorial"}),
     ("simulate", {"_simulate", "_trajectory"}),
     (
         "identification, checks and stress",
