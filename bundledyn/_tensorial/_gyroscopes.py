@@ -13,6 +13,7 @@ angular velocities; the formulations only say how those follow from their coordi
 """
 
 import equinox as eqx
+import jax
 import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Float
@@ -42,7 +43,9 @@ class LagrangeGyroscopeChain(eqx.Module):
 
     `in_rotations()` is the system in the rotation tensors $Z_k$ (the seed's first
     formulation, (59)–(60)), `in_axes(a)` in the axes and spin angles $(e_k, \phi_k)$ (the
-    second, with (42)); `closed_form_equations` evaluates (60).
+    second, with (42)); `closed_form_equations` evaluates (60). `in_universal_joints()` is
+    the same bodies on universal joints instead, in $Z_1$ and the axes (the third, (61)).
+    `to_mjcf` writes either chain for MuJoCo and `Multibody.from_mjcf`.
     """
 
     masses: Float[Array, " n"]
@@ -132,6 +135,37 @@ class LagrangeGyroscopeChain(eqx.Module):
         reference = jnp.asarray(reference, dtype=self.masses.dtype)
         return TensorialSystem(_InAxes(self, reference), Pi=_PotentialInAxes(self))
 
+    def in_universal_joints(self) -> TensorialSystem:
+        r"""The chain with universal joints: body 1 on its spherical pivot, every other body
+        $k$ on a universal joint whose first axis $u_k = Z_{k-1}e_2$ is fixed in body $k-1$
+        (the seed's third formulation, (61)–(62)).
+
+        The coordinates are $Z_1$ and the axes $e^{(2)}, \dots, e^{(n)}$; body $k$'s basis
+        is $e^{(k)}_1 = u_k\times e^{(k)}/|u_k\times e^{(k)}|$ (its second joint axis, fixed
+        in body $k$), $e^{(k)}_2 = e^{(k)}\times e^{(k)}_1$, $e^{(k)}_3 = e^{(k)}$, and its
+        absolute angular velocity (61) comes by differentiating those bases. Singular where
+        an axis lines up with its joint's first axis.
+
+        **Returns:**
+
+        A `TensorialSystem` with one rotation and $n - 1$ unit vectors.
+        """
+        return TensorialSystem(_InUniversalJoints(self), Pi=_PotentialInUniversalJoints(self))
+
+    def universal_joint_rotations(self, X: TensorCoordinates) -> Float[Array, "n 3 3"]:
+        r"""The bodies' rotations at a configuration of `in_universal_joints()`: $Z_1$, then
+        each body's basis $(e^{(k)}_1, e^{(k)}_2, e^{(k)})$ as columns.
+
+        **Arguments:**
+
+        - `X`: $Z_1$ and the axes $e^{(2)}, \dots, e^{(n)}$.
+
+        **Returns:**
+
+        The rotations, shape `(n, 3, 3)`.
+        """
+        return _bases_of_universal_joints(X.rotations[0], X.unit_vectors)
+
     def axes_state(
         self, X: TensorCoordinates, V: TensorVelocities, reference
     ) -> tuple[TensorCoordinates, TensorVelocities]:
@@ -165,18 +199,27 @@ class LagrangeGyroscopeChain(eqx.Module):
             TensorVelocities(spin_rates, axis_omega, jnp.zeros((0, 3), X.rotations.dtype)),
         )
 
-    def to_mjcf(self) -> str:
+    def to_mjcf(self, joints: str = "ball") -> str:
         r"""The chain as an MJCF model: a massive base welded to the world (bundledyn's
         import keeps it as the floating root: hold it with `PrescribedBase.fixed()`) and
-        the bodies on ball joints at their pivots, each with its $z$ axis on the symmetry
-        axis, its centre of mass at $c_k$ and its principal inertias $(A_k, A_k,
-        C^{\rm ax}_k)$; gravity $-g e_z$. One model for MuJoCo, `Multibody.from_mjcf` and
-        the tensor formulations.
+        the bodies at their pivots, each with its $z$ axis on the symmetry axis, its centre
+        of mass at $c_k$ and its principal inertias $(A_k, A_k, C^{\rm ax}_k)$; gravity
+        $-g e_z$. One model for MuJoCo, `Multibody.from_mjcf` and the tensor formulations.
+
+        **Arguments:**
+
+        - `joints`: `"ball"` (every body on a ball joint: `in_rotations`, `in_axes`) or
+          `"universal"` (body 1 on a ball joint, the others on two hinges, about the
+          parent's $y$ then the child's $x$: `in_universal_joints`, whose bases are then the
+          bodies' frames).
 
         **Returns:**
 
         The XML text.
         """
+        if joints not in ("ball", "universal"):
+            raise ValueError(f'`to_mjcf(joints=...)` is "ball" or "universal", got {joints!r}.')
+        universal = '<joint type="hinge" axis="0 1 0"/><joint type="hinge" axis="1 0 0"/>'
         values = {
             name: np.asarray(getattr(self, name), dtype=float).tolist()
             for name in ("masses", "lengths", "centres", "transverse_inertias", "axial_inertias")
@@ -187,8 +230,8 @@ class LagrangeGyroscopeChain(eqx.Module):
             A, C = values["transverse_inertias"][k], values["axial_inertias"][k]
             bodies.append(
                 f'<body name="gyroscope{k + 1}" pos="0 0 {offset!r}">'
-                f'<joint name="pivot{k + 1}" type="ball"/>'
-                f'<inertial pos="0 0 {c!r}" mass="{m!r}" diaginertia="{A!r} {A!r} {C!r}"/>'
+                + (universal if joints == "universal" and k else '<joint type="ball"/>')
+                + f'<inertial pos="0 0 {c!r}" mass="{m!r}" diaginertia="{A!r} {A!r} {C!r}"/>'
             )
             offset = values["lengths"][k]
         nested = "".join(bodies) + "</body>" * self.size
@@ -303,4 +346,37 @@ class _PotentialInAxes(eqx.Module):
 
     def __call__(self, X, t):
         axes = X.unit_vectors
+        return self.chain.energies(axes, jnp.zeros_like(axes), jnp.zeros_like(axes))[1]
+
+
+def _bases_of_universal_joints(first, axes):
+    """The rotations of a chain with universal joints from $Z_1$ and the axes $e^{(2..n)}$."""
+    rotations = [first]
+    for axis in axes:
+        joint_axis = rotations[-1][:, 1]  # u_k = Z_{k-1} e_2, fixed in the parent
+        across = jnp.cross(joint_axis, axis)
+        first_axis = across / jnp.linalg.norm(across)
+        rotations.append(jnp.stack([first_axis, jnp.cross(axis, first_axis), axis], axis=-1))
+    return jnp.stack(rotations)
+
+
+class _InUniversalJoints(eqx.Module):
+    chain: LagrangeGyroscopeChain
+
+    def __call__(self, X, Xdot, t):
+        Z, Zdot = jax.jvp(
+            _bases_of_universal_joints,
+            (X.rotations[0], X.unit_vectors),
+            (Xdot.rotations[0], Xdot.unit_vectors),
+        )
+        spin = Zdot @ jnp.swapaxes(Z, -1, -2)
+        omega = lie.so3_vee(0.5 * (spin - jnp.swapaxes(spin, -1, -2)))
+        return self.chain.energies(Z @ _AXIS, Zdot @ _AXIS, omega)[0]
+
+
+class _PotentialInUniversalJoints(eqx.Module):
+    chain: LagrangeGyroscopeChain
+
+    def __call__(self, X, t):
+        axes = _bases_of_universal_joints(X.rotations[0], X.unit_vectors) @ _AXIS
         return self.chain.energies(axes, jnp.zeros_like(axes), jnp.zeros_like(axes))[1]
