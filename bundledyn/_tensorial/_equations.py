@@ -89,9 +89,13 @@ def tensorial_accelerations(
 
     The equations are affine in the rates: their value at zero rates and their linear part
     (one `jax.linearize`) give a square system of $m + 3n + 3p$ equations, solved densely.
-    A system whose kinetic energy does not determine the rates (a coordinate it does not
-    depend on, a degenerate inertia) gives a singular system: the rates are then not
-    finite and raise (`equinox.error_if`).
+    Where that system is singular or so ill-conditioned that the rates would keep fewer
+    than half the digits of the floating-point type (its condition number, rows and
+    columns scaled, above $1/\sqrt{\epsilon}$: $6.7\cdot10^7$ in float64), the rates
+    raise (`equinox.error_if`) instead of losing their accuracy silently: coordinates near
+    a singular point of their parametrization (the vector parameter near a rotation by
+    $\pi$, an axis near the reference vector of (42)) or a kinetic energy that does not
+    depend on some rate.
 
     **Arguments:**
 
@@ -107,12 +111,27 @@ def tensorial_accelerations(
     flat, unflatten = ravel_pytree(residual)
     basis = jnp.eye(flat.shape[0], dtype=flat.dtype)
     columns = jax.vmap(lambda column: ravel_pytree(linear(unflatten(column)))[0])(basis)
-    rates = jnp.linalg.solve(columns.T, -flat)
+    matrix = columns.T
+    rates = jnp.linalg.solve(matrix, -flat)
+    condition = _equilibrated_condition(jax.lax.stop_gradient(matrix))
+    limit = 1.0 / jnp.sqrt(jnp.finfo(flat.dtype).eps)
     rates = eqx.error_if(
         rates,
-        ~jnp.all(jnp.isfinite(rates)),
-        "The tensorial Lagrange equations (44) do not determine the accelerations here: "
-        "their matrix is singular (the kinetic energy does not depend on some coordinate's "
-        "rate, or an inertia is degenerate), or the state is not finite.",
+        ~(condition <= limit) | ~jnp.all(jnp.isfinite(rates)),
+        "The tensorial Lagrange equations (44) do not determine the accelerations to half "
+        "the digits of the floating-point type here: their matrix is singular or nearly so "
+        "(condition number, rows and columns scaled, above 1/sqrt(eps)). The coordinates "
+        "are near a singular point of their parametrization (a vector parameter near a "
+        "rotation by pi, an axis near its reference vector, a universal joint's axes lined "
+        "up), or the kinetic energy does not depend on some coordinate's rate.",
     )
     return unflatten(rates)
+
+
+def _equilibrated_condition(matrix):
+    """The 2-norm condition number of `matrix` with its rows, then its columns, scaled to a
+    largest entry of one: what is left is the system's own ill-conditioning, not its units
+    (an inertia of 1e-6 beside a closing equation of unit coefficient)."""
+    rows = matrix / jnp.max(jnp.abs(matrix), axis=1, keepdims=True)
+    scaled = rows / jnp.max(jnp.abs(rows), axis=0, keepdims=True)
+    return jnp.linalg.cond(scaled)
