@@ -157,6 +157,7 @@ from ._tensorial import (
     TensorialTerm,
     TensorVelocities,
     accelerations_of,
+    generalized_forces_at_points,
     lagrange_bracket,
     projected,
     rates_of,
@@ -354,4 +355,5 @@ __all__ = [
     "tensorial_accelerations",
     "tensorial_equations",
     "LagrangeGyroscopeChain",
+    "generalized_forces_at_points",
 ]

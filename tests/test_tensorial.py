@@ -234,6 +234,31 @@ def _heavy_top_in_the_vector_parameter():
     return bd.TensorialSystem(T, Pi=Pi)
 
 
+def test_gravity_as_a_force_at_the_centre_is_the_potentials_force():
+    """Q = [1]∂r/∂Z · f for the weight f = -mg e_z at the centre r = l Ze₃
+    (`generalized_forces_at_points`) gives the top the same equations (44) as its potential
+    Π = mgl (Ze₃)·e_z, on random states, to 1e-13."""
+
+    def weight(X, Xdot, t):
+        centre = lambda X: TOP_ARM * (X.rotations @ AXIS)
+        force = -TOP_MASS * GRAVITY * UP[None]
+        return bd.generalized_forces_at_points(centre, X, force)
+
+    by_force = bd.TensorialSystem(_heavy_top().T, Q=weight)
+    by_potential = _heavy_top()
+    rng = np.random.default_rng(17)
+    for _ in range(3):
+        X, V = _rotations_only(
+            lie.so3_exp(jnp.asarray(rng.normal(size=(1, 3)))), jnp.asarray(rng.normal(size=(1, 3)))
+        )
+        _close(
+            bd.tensorial_accelerations(by_force, X, V, 0.0).rotations,
+            bd.tensorial_accelerations(by_potential, X, V, 0.0).rotations,
+            1e-13 * 100,
+            "ω̇",
+        )
+
+
 def test_the_top_in_the_vector_parameter_agrees_until_its_singularity_and_then_says_so():
     """The fast top written in Gibbs's vector parameter equals it in its rotation tensor to
     1e-9 while the rotation angle stays below π (0.04 s); continued, the rotation passes
@@ -347,11 +372,7 @@ def _tensor_state_of(data, joints):
     omega = jnp.asarray(data.cvel[2:, :3])
     if joints == "ball":
         return _rotations_only(Z, omega)
-    scalars = jnp.zeros(0)
-    return (
-        bd.TensorCoordinates(scalars, Z[1:, :, 2], Z[:1]),
-        bd.TensorVelocities(scalars, omega[1:], omega[:1]),
-    )
+    return _chain(3).universal_joint_state(Z, omega)
 
 
 @pytest.mark.parametrize("joints", ["ball", "universal"])
@@ -392,6 +413,51 @@ def test_the_chain_moves_as_its_multibody_and_as_mujoco(joints):
     assert float(jnp.max(jnp.abs(by_tensors - rotations(X0)))) > 1.0
     _close(by_tree, by_tensors, 1e-10, "Multibody - (44)")
     _close(by_mujoco, by_tensors, 1e-7, "MuJoCo - (44)")
+
+
+def test_the_universal_joint_chains_equations_are_the_seeds_61_and_62():
+    """On random states and rates of three bodies on universal joints (axes kept off their
+    joints' first axes), (44) by autodiff equals (62) term by term, to 1e-12: the equation of
+    Z₁ as it stands, those of the relative axes as (62)'s in the parent's basis (the seed's
+    relative vectors). And the bodies' angular velocities from the differentiated bases are
+    (61)'s sum ω₁ + Σ A_j ė_j (ė_j relative), to 1e-14."""
+    chain = _chain(3)
+    system = chain.in_universal_joints()
+    rng = np.random.default_rng(13)
+    for _ in range(4):
+        axes = jnp.asarray(rng.normal(size=(2, 3)) * [1.0, 0.3, 1.0] + [0.0, 0.0, 1.5])
+        axes = axes / jnp.linalg.norm(axes, axis=-1, keepdims=True)
+        Z1 = lie.so3_exp(jnp.asarray(rng.normal(size=(1, 3))))
+        draw = lambda *shape: jnp.asarray(rng.normal(size=shape))
+        X = bd.TensorCoordinates(jnp.zeros(0), axes, Z1)
+        V = bd.TensorVelocities(jnp.zeros(0), draw(2, 3), draw(1, 3))
+        A = bd.TensorVelocities(jnp.zeros(0), draw(2, 3), draw(1, 3))
+        ours = bd.tensorial_equations(system, X, V, A, 0.0)
+        first, rest = chain.closed_form_universal_equations(X, V, A)
+        scale = float(jnp.max(jnp.abs(first)))
+        _close(ours.rotations[0], first, 1e-12 * scale, "(62), Z₁")
+        Z = chain.universal_joint_rotations(X)
+        in_parents = jnp.einsum("kji,kj->ki", Z[:-1], rest)
+        closing = jnp.sum(A.unit_vectors * axes, axis=-1, keepdims=True) * axes
+        _close(ours.unit_vectors - closing, in_parents, 1e-12 * scale, "(62), axes")
+
+        rates = bd.rates_of(X, V)
+        _, Zdot = jax.jvp(chain.universal_joint_rotations, (X,), (rates,))
+        spin = Zdot @ jnp.swapaxes(Z, -1, -2)
+        omega = lie.so3_vee(0.5 * (spin - jnp.swapaxes(spin, -1, -2)))
+        absolute_axes, joint_axes, first_axes = Z[1:, :, 2], Z[:-1, :, 1], Z[1:, :, 0]
+        relative_rates = jnp.einsum("kij,kj->ki", Z[:-1], rates.unit_vectors)
+        factor = jnp.sum(joint_axes * absolute_axes, -1) / jnp.linalg.norm(
+            jnp.cross(joint_axes, absolute_axes), axis=-1
+        )
+        turns = (
+            factor[:, None]
+            * jnp.sum(first_axes * relative_rates, -1, keepdims=True)
+            * absolute_axes
+        )
+        turns = turns + jnp.cross(absolute_axes, relative_rates)  # A_j ė_j
+        sums = V.rotations[:1] + jnp.cumsum(turns, axis=0)
+        _close(omega[1:], sums, 1e-14 * float(jnp.max(jnp.abs(sums))), "(61)")
 
 
 def _agm_quarter_period(m):

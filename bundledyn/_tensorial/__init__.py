@@ -17,7 +17,7 @@ from ._solver import (
     TensorialRKMK54,
     TensorialRKMK87,
 )
-from ._system import AbstractTensorialSystem, TensorialSystem
+from ._system import AbstractTensorialSystem, TensorialSystem, generalized_forces_at_points
 from ._term import TensorialTerm
 
 __all__ = [
@@ -33,6 +33,7 @@ __all__ = [
     "TensorialTerm",
     "TensorVelocities",
     "accelerations_of",
+    "generalized_forces_at_points",
     "lagrange_bracket",
     "projected",
     "rates_of",

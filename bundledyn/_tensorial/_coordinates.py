@@ -19,6 +19,7 @@ from .. import lie
 
 __all__ = [
     "TensorCoordinates",
+    "angular_velocity",
     "TensorVelocities",
     "accelerations_of",
     "projected",
@@ -82,6 +83,24 @@ def rates_of(X: TensorCoordinates, V: TensorVelocities) -> TensorCoordinates:
         jnp.cross(V.unit_vectors, X.unit_vectors),
         lie.so3_hat(V.rotations) @ X.rotations,
     )
+
+
+def angular_velocity(
+    Z: Float[Array, "... 3 3"], Zdot: Float[Array, "... 3 3"]
+) -> Float[Array, "... 3"]:
+    r"""$\omega = (\dot ZZ^T)^\vee$ (55), of the skew part, so that it is read alike off a rate
+    that left the tangent space by rounding.
+
+    **Arguments:**
+
+    - `Z`: rotations, shape `(..., 3, 3)`; `Zdot`: their rates.
+
+    **Returns:**
+
+    The absolute angular velocities, shape `(..., 3)`.
+    """
+    spin = Zdot @ jnp.swapaxes(Z, -1, -2)
+    return lie.so3_vee(0.5 * (spin - jnp.swapaxes(spin, -1, -2)))
 
 
 def accelerations_of(

@@ -20,7 +20,13 @@ from jaxtyping import Array, Float
 
 from .. import lie
 from .._validation import concrete
-from ._coordinates import TensorCoordinates, TensorVelocities
+from ._coordinates import (
+    TensorCoordinates,
+    TensorVelocities,
+    accelerations_of,
+    angular_velocity,
+    rates_of,
+)
 from ._system import TensorialSystem
 
 __all__ = ["LagrangeGyroscopeChain"]
@@ -137,13 +143,15 @@ class LagrangeGyroscopeChain(eqx.Module):
 
     def in_universal_joints(self) -> TensorialSystem:
         r"""The chain with universal joints: body 1 on its spherical pivot, every other body
-        $k$ on a universal joint whose first axis $u_k = Z_{k-1}e_2$ is fixed in body $k-1$
-        (the seed's third formulation, (61)–(62)).
+        $k$ on a universal joint whose first axis is $e_2$ of body $k-1$ (the seed's third
+        formulation, (61)–(62)).
 
-        The coordinates are $Z_1$ and the axes $e^{(2)}, \dots, e^{(n)}$; body $k$'s basis
-        is $e^{(k)}_1 = u_k\times e^{(k)}/|u_k\times e^{(k)}|$ (its second joint axis, fixed
-        in body $k$), $e^{(k)}_2 = e^{(k)}\times e^{(k)}_1$, $e^{(k)}_3 = e^{(k)}$, and its
-        absolute angular velocity (61) comes by differentiating those bases. Singular where
+        The coordinates are $Z_1$ and, for $k \ge 2$, the axis $\varepsilon_k$ of body $k$ in
+        the basis of body $k-1$ ($e^{(k)} = Z_{k-1}\varepsilon_k$): the seed's relative
+        vectors, whose rates are its relative derivatives. Body $k$'s basis in its parent's
+        is $(e_2\times\varepsilon_k/|e_2\times\varepsilon_k|,\ \varepsilon_k\times\cdot,\
+        \varepsilon_k)$, its first vector the joint's second axis, fixed in body $k$; the
+        absolute angular velocities (61) come by differentiating the bases. Singular where
         an axis lines up with its joint's first axis.
 
         **Returns:**
@@ -152,19 +160,69 @@ class LagrangeGyroscopeChain(eqx.Module):
         """
         return TensorialSystem(_InUniversalJoints(self), Pi=_PotentialInUniversalJoints(self))
 
-    def universal_joint_rotations(self, X: TensorCoordinates) -> Float[Array, "n 3 3"]:
-        r"""The bodies' rotations at a configuration of `in_universal_joints()`: $Z_1$, then
-        each body's basis $(e^{(k)}_1, e^{(k)}_2, e^{(k)})$ as columns.
+    def mujoco_state(
+        self, X: TensorCoordinates, V: TensorVelocities
+    ) -> tuple[np.ndarray, np.ndarray]:
+        r"""MuJoCo's `qpos`, `qvel` of `to_mjcf("ball")` at a state of `in_rotations()`.
+
+        Each ball joint's quaternion ($w$ first) is of $Z_{k-1}^TZ_k$ and its velocity is
+        $Z_k^T(\omega_k - \omega_{k-1})$, the body's angular velocity relative to its parent
+        in its own axes ($Z_0 = 1$, $\omega_0 = 0$).
 
         **Arguments:**
 
-        - `X`: $Z_1$ and the axes $e^{(2)}, \dots, e^{(n)}$.
+        - `X`, `V`: the rotations and their angular velocities.
+
+        **Returns:**
+
+        `(qpos, qvel)`, NumPy arrays of shapes `(4n,)` and `(3n,)`.
+        """
+        Z, omega = X.rotations, V.rotations
+        parents = jnp.concatenate([jnp.eye(3, dtype=Z.dtype)[None], Z[:-1]])
+        parent_omega = jnp.concatenate([jnp.zeros((1, 3), Z.dtype), omega[:-1]])
+        relative = jnp.einsum("kji,kjl->kil", parents, Z)
+        quaternions = jax.vmap(lie.quaternion_from_rotation)(relative)
+        rates = jnp.einsum("kji,kj->ki", Z, omega - parent_omega)
+        return np.asarray(quaternions).ravel(), np.asarray(rates).ravel()
+
+    def universal_joint_rotations(self, X: TensorCoordinates) -> Float[Array, "n 3 3"]:
+        r"""The bodies' rotations at a configuration of `in_universal_joints()`: $Z_1$, then
+        $Z_k = Z_{k-1}R(\varepsilon_k)$, $R(\varepsilon_k)$ body $k$'s basis in its parent's.
+
+        **Arguments:**
+
+        - `X`: $Z_1$ and the relative axes $\varepsilon_2, \dots, \varepsilon_n$.
 
         **Returns:**
 
         The rotations, shape `(n, 3, 3)`.
         """
         return _bases_of_universal_joints(X.rotations[0], X.unit_vectors)
+
+    def universal_joint_state(
+        self, Z: Float[Array, "n 3 3"], omega: Float[Array, "n 3"]
+    ) -> tuple[TensorCoordinates, TensorVelocities]:
+        r"""The state of `in_universal_joints()` whose bodies have the rotations `Z` (which the
+        joints must allow) and the angular velocities `omega`: $\varepsilon_k =
+        Z_{k-1}^Te^{(k)}$ and its angular velocity $Z_{k-1}^T(\omega_k - \omega_{k-1})$.
+
+        **Arguments:**
+
+        - `Z`: the bodies' rotations, shape `(n, 3, 3)`; `omega`: their angular velocities,
+          shape `(n, 3)`.
+
+        **Returns:**
+
+        `(X, V)`.
+        """
+        parents = Z[:-1]
+        axes = jnp.einsum("kji,kj->ki", parents, Z[1:, :, 2])
+        relative = jnp.einsum("kji,kj->ki", parents, omega[1:] - omega[:-1])
+        scalars = jnp.zeros(0, Z.dtype)
+        return (
+            TensorCoordinates(scalars, axes, Z[:1]),
+            TensorVelocities(scalars, relative, omega[:1]),
+        )
 
     def axes_state(
         self, X: TensorCoordinates, V: TensorVelocities, reference
@@ -298,6 +356,11 @@ class LagrangeGyroscopeChain(eqx.Module):
         axes = Z @ _AXIS
         axis_rates = jnp.cross(omega, axes)
         axis_accelerations = jnp.cross(alpha, axes) + jnp.cross(omega, axis_rates)
+        return self._balances(axes, axis_rates, axis_accelerations, omega, alpha)
+
+    def _balances(self, axes, axis_rates, axis_accelerations, omega, alpha):
+        r"""Per augmented body, the bracket of (59) and (60): $\tfrac{d}{dt}(J_k\omega_k) +
+        e_k\times(\sum_{j\ne k}g_{kj}\ddot e_j + Mgb_ke_0)$."""
         transverse, axial = self.pivot_inertias()
         along = jnp.sum(omega * axes, axis=-1, keepdims=True)
         along_rate = jnp.sum(alpha * axes + omega * axis_rates, axis=-1, keepdims=True)
@@ -310,23 +373,71 @@ class LagrangeGyroscopeChain(eqx.Module):
         pulls = couplings @ axis_accelerations + jnp.outer(self.gravity * moments, jnp.asarray(_UP))
         return momentum_rate + jnp.cross(axes, pulls)
 
+    def closed_form_universal_equations(
+        self, X: TensorCoordinates, V: TensorVelocities, A: TensorVelocities
+    ) -> tuple[Float[Array, "3"], Float[Array, "m 3"]]:
+        r"""The left sides of the seed's (62), for `in_universal_joints()` at the rates $A$.
+
+        With $S_k$ the bracket of (60) for body $k$: $\sum_k S_k$ (the equation of $Z_1$),
+        and for $i \ge 2$ $\tilde e^{(i)}A_i^T\sum_{k \ge i}S_k$, with (61)'s
+        $A_i = \frac{(u_i\cdot e^{(i)})}{|u_i\times e^{(i)}|}e^{(i)}e_1^{(i)T} + \tilde
+        e^{(i)}$, $u_i$ the joint's first axis. (The seed prints the second with $\sum_{j >
+        i}$ where (59) gives $\sum_{j\ne k}$; this is (59)'s.) The kinematics ($\omega_k$,
+        $\dot\omega_k$, $\ddot e_k$) are differentiated from the bases; $\omega_k$ equals
+        (61)'s sum.
+
+        **Arguments:**
+
+        - `X`, `V`, `A`: a state of `in_universal_joints()` and its velocities' rates.
+
+        **Returns:**
+
+        `(first, rest)`: the equation of $Z_1$, shape `(3,)`, and those of the axes in
+        absolute axes, shape `(n - 1, 3)`.
+        """
+        Xdot, Xddot = rates_of(X, V), accelerations_of(X, V, A)
+        position = (X.rotations[0], X.unit_vectors)
+        rate = (Xdot.rotations[0], Xdot.unit_vectors)
+        along = lambda x, v: jax.jvp(_bases_of_universal_joints, x, v)
+        (Z, Zdot), (_, Zddot) = jax.jvp(
+            along, (position, rate), (rate, (Xddot.rotations[0], Xddot.unit_vectors))
+        )
+        omega = angular_velocity(Z, Zdot)
+        alpha = angular_velocity(Z, Zddot)  # (Z̈Zᵀ)^∨ of the skew part is ω̇
+        balances = self._balances(Z @ _AXIS, Zdot @ _AXIS, Zddot @ _AXIS, omega, alpha)
+        outboard = jnp.cumsum(balances[::-1], axis=0)[::-1]  # Σ_{k ≥ i}
+        joint_axes = Z[:-1, :, 1]
+        axes, first_axes = Z[1:, :, 2], Z[1:, :, 0]
+        factor = jnp.sum(joint_axes * axes, axis=-1) / jnp.linalg.norm(
+            jnp.cross(joint_axes, axes), axis=-1
+        )
+        # A_iᵀ v = factor (e·v) e₁ + ẽᵀ v = factor (e·v) e₁ - e × v
+        sums = outboard[1:]
+        transposed = factor[:, None] * jnp.sum(axes * sums, axis=-1, keepdims=True) * first_axes
+        transposed = transposed - jnp.cross(axes, sums)
+        return outboard[0], jnp.cross(axes, transposed)
+
+
+def _kinetic_energy_of_rotations(chain, Z, Zdot):
+    return chain.energies(Z @ _AXIS, Zdot @ _AXIS, angular_velocity(Z, Zdot))[0]
+
+
+def _potential_energy_of_axes(chain, axes):
+    return chain.energies(axes, jnp.zeros_like(axes), jnp.zeros_like(axes))[1]
+
 
 class _InRotations(eqx.Module):
     chain: LagrangeGyroscopeChain
 
     def __call__(self, X, Xdot, t):
-        Z, Zdot = X.rotations, Xdot.rotations
-        spin = Zdot @ jnp.swapaxes(Z, -1, -2)
-        omega = lie.so3_vee(0.5 * (spin - jnp.swapaxes(spin, -1, -2)))
-        return self.chain.energies(Z @ _AXIS, Zdot @ _AXIS, omega)[0]
+        return _kinetic_energy_of_rotations(self.chain, X.rotations, Xdot.rotations)
 
 
 class _PotentialInRotations(eqx.Module):
     chain: LagrangeGyroscopeChain
 
     def __call__(self, X, t):
-        axes = X.rotations @ _AXIS
-        return self.chain.energies(axes, jnp.zeros_like(axes), jnp.zeros_like(axes))[1]
+        return _potential_energy_of_axes(self.chain, X.rotations @ _AXIS)
 
 
 class _InAxes(eqx.Module):
@@ -345,18 +456,19 @@ class _PotentialInAxes(eqx.Module):
     chain: LagrangeGyroscopeChain
 
     def __call__(self, X, t):
-        axes = X.unit_vectors
-        return self.chain.energies(axes, jnp.zeros_like(axes), jnp.zeros_like(axes))[1]
+        return _potential_energy_of_axes(self.chain, X.unit_vectors)
 
 
-def _bases_of_universal_joints(first, axes):
-    """The rotations of a chain with universal joints from $Z_1$ and the axes $e^{(2..n)}$."""
+def _bases_of_universal_joints(first, relative_axes):
+    r"""The rotations of a chain with universal joints from $Z_1$ and the axes $\varepsilon_k$
+    in their parents' bases."""
+    joint_axis = jnp.asarray([0.0, 1.0, 0.0], dtype=first.dtype)  # e₂ of the parent
     rotations = [first]
-    for axis in axes:
-        joint_axis = rotations[-1][:, 1]  # u_k = Z_{k-1} e_2, fixed in the parent
+    for axis in relative_axes:
         across = jnp.cross(joint_axis, axis)
         first_axis = across / jnp.linalg.norm(across)
-        rotations.append(jnp.stack([first_axis, jnp.cross(axis, first_axis), axis], axis=-1))
+        local = jnp.stack([first_axis, jnp.cross(axis, first_axis), axis], axis=-1)
+        rotations.append(rotations[-1] @ local)
     return jnp.stack(rotations)
 
 
@@ -369,9 +481,7 @@ class _InUniversalJoints(eqx.Module):
             (X.rotations[0], X.unit_vectors),
             (Xdot.rotations[0], Xdot.unit_vectors),
         )
-        spin = Zdot @ jnp.swapaxes(Z, -1, -2)
-        omega = lie.so3_vee(0.5 * (spin - jnp.swapaxes(spin, -1, -2)))
-        return self.chain.energies(Z @ _AXIS, Zdot @ _AXIS, omega)[0]
+        return _kinetic_energy_of_rotations(self.chain, Z, Zdot)
 
 
 class _PotentialInUniversalJoints(eqx.Module):
@@ -379,4 +489,4 @@ class _PotentialInUniversalJoints(eqx.Module):
 
     def __call__(self, X, t):
         axes = _bases_of_universal_joints(X.rotations[0], X.unit_vectors) @ _AXIS
-        return self.chain.energies(axes, jnp.zeros_like(axes), jnp.zeros_like(axes))[1]
+        return _potential_energy_of_axes(self.chain, axes)

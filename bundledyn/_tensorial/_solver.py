@@ -32,7 +32,7 @@ from jaxtyping import Array, PyTree
 
 from .. import lie
 from .._solver._tableau import LieButcherTableau, dopri5_tableau, dopri8_tableau, rk4_tableau
-from ._coordinates import TensorCoordinates, checked_state
+from ._coordinates import TensorCoordinates, angular_velocity, checked_state
 
 __all__ = [
     "AbstractTensorialRKMK",
@@ -72,8 +72,7 @@ def _chart_rate(u, y, field):
     Xdot, Vdot = field
     _, axis_turns, turns, _ = _split_chart(X, u)
     axis_generators = jnp.cross(X.unit_vectors, Xdot.unit_vectors)  # Ω⊥: ė = Ω⊥ × e
-    spin = Xdot.rotations @ jnp.swapaxes(X.rotations, -1, -2)
-    generators = lie.so3_vee(0.5 * (spin - jnp.swapaxes(spin, -1, -2)))  # ω: Ż = ω̃ Z
+    generators = angular_velocity(X.rotations, Xdot.rotations)  # ω: Ż = ω̃ Z
     apply = lambda turn, w: jnp.einsum("kij,kj->ki", lie.so3_left_jacobian_inv(turn), w)
     return jnp.concatenate(
         [

@@ -10,7 +10,7 @@ from jaxtyping import Array, Float
 
 from ._coordinates import TensorCoordinates, TensorVelocities, rates_of
 
-__all__ = ["AbstractTensorialSystem", "TensorialSystem"]
+__all__ = ["AbstractTensorialSystem", "TensorialSystem", "generalized_forces_at_points"]
 
 
 class AbstractTensorialSystem(eqx.Module):
@@ -100,7 +100,8 @@ class TensorialSystem(AbstractTensorialSystem):
 
     - `T`: the kinetic energy `T(X, Xdot, t) -> scalar`, `X` and `Xdot` `TensorCoordinates`.
     - `Pi`: the potential `Pi(X, t) -> scalar`, or `None`.
-    - `Q`: other tensor forces `Q(X, Xdot, t) -> TensorCoordinates`, or `None`.
+    - `Q`: other tensor forces `Q(X, Xdot, t) -> TensorCoordinates` (forces at points:
+      `generalized_forces_at_points`), or `None`.
 
     Make the functions `equinox.Module`s (or close over arrays) to differentiate with
     respect to their parameters.
@@ -134,3 +135,30 @@ class TensorialSystem(AbstractTensorialSystem):
         if self.Q is not None:
             forces = jax.tree.map(jnp.add, forces, self.Q(X, Xdot, t))
         return forces
+
+
+def generalized_forces_at_points(
+    position: Callable[[TensorCoordinates], Float[Array, "k 3"]],
+    X: TensorCoordinates,
+    forces: Float[Array, "k 3"],
+) -> TensorCoordinates:
+    r"""The tensor generalized forces of forces applied at points, $Q_i = \sum_a [1]\partial r_a/\partial X_i\cdot f_a$ (44).
+
+    The seed's $Q_i = \int [1]\partial r/\partial X_i\cdot df$ for forces $f_a$ at the
+    points $r_a(X)$: one vector-Jacobian product of the points' positions. Return it from a
+    `TensorialSystem`'s `Q` for forces that have no potential (a thrust, a drag, a
+    follower load).
+
+    **Arguments:**
+
+    - `position`: `position(X) -> (k, 3)`, where the forces act.
+    - `X`: the coordinates.
+    - `forces`: $f_a$, shape `(k, 3)`, in the inertial frame.
+
+    **Returns:**
+
+    $Q$, as `TensorCoordinates` of tensors.
+    """
+    _, pullback = jax.vjp(position, X)
+    (forces_on_coordinates,) = pullback(jnp.asarray(forces, dtype=X.rotations.dtype))
+    return forces_on_coordinates
