@@ -1,0 +1,3 @@
+from benchmarks.tensorial.cli import main
+
+raise SystemExit(main())
