@@ -13,7 +13,8 @@ from benchmarks._output import RESULTS
 from benchmarks.accuracy_cost.sweep import default_solver
 
 BENCHMARKS = {
-    "accuracy_cost", "speed", "speed_gpu", "family", "identification", "stress", "nonholonomic"
+    "accuracy_cost", "speed", "speed_gpu", "family", "identification", "stress", "nonholonomic",
+    "tensorial",
 }  # fmt: skip
 
 

@@ -11,7 +11,6 @@ seed's derivation of (44): $\delta q$, $\delta e = \delta\pi\times e$ and $\delt
 """
 
 import equinox as eqx
-import jax
 import jax.numpy as jnp
 from jaxtyping import Array, Float
 
@@ -180,13 +179,3 @@ def zeros_like_velocities(X: TensorCoordinates) -> TensorVelocities:
     m, n, p = X.counts
     dtype = X.rotations.dtype
     return TensorVelocities(jnp.zeros(m, dtype), jnp.zeros((n, 3), dtype), jnp.zeros((p, 3), dtype))
-
-
-def is_on_the_manifold(X: TensorCoordinates, tolerance: float) -> jax.Array:
-    r"""True where every $|e_k| = 1$ and $Z_k^TZ_k = 1$, $\det Z_k = 1$ to `tolerance`."""
-    lengths = jnp.linalg.norm(X.unit_vectors, axis=-1) - 1.0
-    identity = jnp.eye(3, dtype=X.rotations.dtype)
-    gram = jnp.swapaxes(X.rotations, -1, -2) @ X.rotations - identity
-    determinants = jnp.linalg.det(X.rotations) - 1.0
-    worst = jnp.max(jnp.abs(jnp.concatenate([lengths, gram.ravel(), determinants])), initial=0.0)
-    return worst <= tolerance
