@@ -329,6 +329,7 @@ def test_the_chains_equations_by_autodiff_are_the_seeds_closed_form_60():
 def test_three_gyroscopes_in_rotations_and_in_axes_move_alike():
     """The seed's first and second formulations of a chain of three gyroscopes, integrated
     separately for 1 s: the axes agree to 1e-8, each formulation keeps its energy to 1e-9,
+    the vertical angular momentum about the pivot is kept to 1e-9 (the horizontal changes),
     and the axes stay unit and the rotations orthogonal to rounding."""
     chain = _chain(3)
     ts = jnp.linspace(0.0, 1.0, 5)
@@ -346,6 +347,10 @@ def test_three_gyroscopes_in_rotations_and_in_axes_move_alike():
     ):
         energy = jax.vmap(system.energy)(X, V, ts)
         _close(energy - energy[0], 0.0, 1e-9, "energy")
+    omega = in_rotations[1].rotations
+    momentum = jax.vmap(chain.angular_momentum)(axes, jnp.cross(omega, axes), omega)
+    _close(momentum[:, 2] - momentum[0, 2], 0.0, 1e-9, "vertical angular momentum")
+    assert float(jnp.max(jnp.abs(momentum[:, :2] - momentum[:1, :2]))) > 1e-2  # gravity's moment
     _close(jnp.linalg.norm(in_axes[0].unit_vectors, axis=-1), 1.0, 1e-14, "|e|")
     _close(_orthogonality_error(in_rotations[0].rotations), 0.0, 1e-14, "ZᵀZ")
 

@@ -103,17 +103,47 @@ class LagrangeGyroscopeChain(eqx.Module):
 
         The kinetic and the potential energy.
         """
-        arms = self.lengths[:, None] * axes
-        arm_rates = self.lengths[:, None] * axis_rates
-        before = lambda x: jnp.cumsum(x, axis=0) - x  # Σ_{j<k}
-        centres = before(arms) + self.centres[:, None] * axes
-        velocities = before(arm_rates) + self.centres[:, None] * axis_rates
+        centres, velocities = self._centres(axes, axis_rates)
         along = jnp.sum(angular_velocities * axes, axis=-1)
         spin = self.axial_inertias * along**2
         tumble = self.transverse_inertias * (jnp.sum(angular_velocities**2, axis=-1) - along**2)
         kinetic = 0.5 * jnp.sum(self.masses * jnp.sum(velocities**2, axis=-1) + spin + tumble)
         potential = self.gravity * jnp.sum(self.masses * (centres @ _UP))
         return kinetic, potential
+
+    def _centres(self, axes, axis_rates):
+        """The centres of mass $r_k$ and their velocities."""
+        before = lambda x: jnp.cumsum(x, axis=0) - x  # Σ_{j<k}
+        centres = before(self.lengths[:, None] * axes) + self.centres[:, None] * axes
+        rates = before(self.lengths[:, None] * axis_rates) + self.centres[:, None] * axis_rates
+        return centres, rates
+
+    def angular_momentum(
+        self,
+        axes: Float[Array, "n 3"],
+        axis_rates: Float[Array, "n 3"],
+        angular_velocities: Float[Array, "n 3"],
+    ) -> Float[Array, "3"]:
+        r"""The chain's angular momentum about the fixed pivot, $\sum_k m_kr_k\times\dot r_k +
+        J^c_k\omega_k$; its vertical component is a first integral (gravity's moment about
+        the pivot is horizontal), as is the energy.
+
+        **Arguments:**
+
+        - `axes`, `axis_rates`, `angular_velocities`: shape `(n, 3)` each.
+
+        **Returns:**
+
+        The angular momentum, shape `(3,)`.
+        """
+        centres, velocities = self._centres(axes, axis_rates)
+        along = jnp.sum(angular_velocities * axes, axis=-1, keepdims=True)
+        spins = (
+            self.transverse_inertias[:, None] * angular_velocities
+            + (self.axial_inertias - self.transverse_inertias)[:, None] * along * axes
+        )
+        orbits = self.masses[:, None] * jnp.cross(centres, velocities)
+        return jnp.sum(orbits + spins, axis=0)
 
     def in_rotations(self) -> TensorialSystem:
         r"""The chain in the rotation tensors $Z_k$ of its bodies: $e_k = Z_ke_3$,
