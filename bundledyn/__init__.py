@@ -45,6 +45,7 @@ from ._geometry import (
     metric,
     shape_metric,
 )
+from ._gyroscope_file import GyroscopeChainFile, is_gyroscope_file
 from ._holonomy import curvature_by_holonomy, horizontal_lift, square_loop_holonomy
 from ._identify_file import IdentificationFile
 from ._modes import (
@@ -356,4 +357,6 @@ __all__ = [
     "tensorial_equations",
     "LagrangeGyroscopeChain",
     "generalized_forces_at_points",
+    "GyroscopeChainFile",
+    "is_gyroscope_file",
 ]

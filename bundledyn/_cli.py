@@ -147,10 +147,12 @@ def run(args) -> int:
     """Simulate a scene file and write its trajectory and pictures."""
     import bundledyn as bd
 
-    scene_file = bd.SceneFile.load(args.scene)
     out = pathlib.Path(args.out)
     if not out.is_dir():
         raise _Failure(f"{out}: the output folder does not exist.")
+    if bd.is_gyroscope_file(args.scene):
+        return _run_gyroscopes(bd.GyroscopeChainFile.load(args.scene), out, args)
+    scene_file = bd.SceneFile.load(args.scene)
     print(f"bundledyn run {scene_file.path}")
     traj, elapsed = _solve(scene_file, progress=args.progress)
     diagnostics = traj.diagnostics()
@@ -162,6 +164,82 @@ def run(args) -> int:
     for p in written:
         print(f"  wrote {p}")
     return 0
+
+
+def _run_gyroscopes(chain_file, out, args) -> int:
+    """Integrate a gyroscope chain's file, print its first integrals, write them and a plot."""
+    import diffrax
+    import jax
+    import numpy as np
+
+    from . import __version__
+    from ._files import atomic_path
+
+    print(f"bundledyn run {chain_file.path}")
+    start = time.perf_counter()
+    solution = chain_file.solve(throw=False)
+    jax.block_until_ready(solution.ys)
+    elapsed = time.perf_counter() - start
+    if not bool(solution.result == diffrax.RESULTS.successful):
+        raise _Failure(
+            f"{chain_file.path}: the solver stopped early: {diffrax.RESULTS[solution.result]}"
+        )
+    found = {k: np.asarray(v) for k, v in chain_file.first_integrals(solution).items()}
+    energy, vertical = found["energy"], found["vertical_momentum"]
+    print(
+        f"  {chain_file.chain.size} Lagrange gyroscopes in {chain_file.formulation}, "
+        f"{chain_file.t0:g} → {chain_file.t1:g} s: {int(solution.stats['num_steps'])} steps "
+        f"of {type(chain_file.solver).__name__} in {elapsed:.1f} s (compiling included)"
+    )
+    print(f"  energy {energy[0]:.6g} J, largest drift {np.abs(energy - energy[0]).max():.1e}")
+    print(
+        f"  vertical angular momentum about the pivot {vertical[0]:.6g}, largest drift "
+        f"{np.abs(vertical - vertical[0]).max():.1e}"
+    )
+    print(f"  rotations orthogonal to {found['orthogonality'].max():.1e}")
+    path = out / chain_file.output["trajectory"]
+    metadata = {
+        "bundledyn": __version__,
+        "seconds": elapsed,
+        "solver": type(chain_file.solver).__name__,
+    }
+    with atomic_path(path) as tmp:
+        np.savez(
+            tmp,
+            ts=np.asarray(solution.ts),
+            rotations=found["rotations"],
+            angular_velocities=found["angular_velocities"],
+            energy=energy,
+            vertical_momentum=vertical,
+            scene=np.array(chain_file.text),
+            metadata=np.array(json.dumps(metadata)),
+        )
+    written = [path]
+    if chain_file.output["plots"] and not args.no_pictures and _pictures_available():
+        written.append(
+            _plot_first_integrals(
+                np.asarray(solution.ts), energy, vertical, out / f"{path.stem}_drift.png"
+            )
+        )
+    for p in written:
+        print(f"  wrote {p}")
+    return 0
+
+
+def _plot_first_integrals(ts, energy, vertical, path):
+    """The drifts of the energy and of the vertical angular momentum against time."""
+    import numpy as np
+
+    from . import viz
+
+    fig = viz.new_figure(6.0, 3.0)
+    ax = fig.add_subplot()
+    for values, label in ((energy, "energy (J)"), (vertical, "vertical angular momentum")):
+        ax.semilogy(ts, np.abs(values - values[0]) + 1e-300, label=label)
+    ax.set_xlabel("t (s)")
+    ax.set_ylabel("|drift|")
+    ax.legend()
+    return viz.save_figure(fig, path)
 
 
 def check(args) -> int:
