@@ -168,6 +168,42 @@ def test_identity_48_the_projection_of_the_angular_velocitys_derivative_is_the_u
         _close(bd.projected(X, bracket, V).rotations[0], v, 1e-14, "(48)")
 
 
+def _random_rotation_state(rng):
+    Z = lie.so3_exp(jnp.asarray(rng.normal(size=3)))
+    return Z, jnp.asarray(rng.normal(size=3)), jnp.asarray(rng.normal(size=3))
+
+
+def test_identity_50_the_bracket_of_the_angular_velocity_projects_to_its_cross_product():
+    """(50) with (48) and (56): for g = v·ω, ω = (ŻZᵀ)^∨, the projected bracket
+    Z̃ ∧₂ [d/dt ∂g/∂Ż - ∂g/∂Z] is -ω̃v = v × ω (∂ĝ/∂ω = v is constant), to 1e-14; along
+    Ż = ω̃Z and Z̈ = (α̃ + ω̃ω̃)Z for any α."""
+    rng = np.random.default_rng(19)
+    for _ in range(3):
+        Z, omega, v = _random_rotation_state(rng)
+        X, V = _rotations_only(Z[None], omega[None])
+        _, A = _rotations_only(Z[None], jnp.asarray(rng.normal(size=(1, 3))))
+        system = bd.TensorialSystem(
+            lambda X, Xdot, t, v=v: v @ lie.so3_vee(Xdot.rotations[0] @ X.rotations[0].T)
+        )
+        bracket = bd.lagrange_bracket(
+            system, X, bd.rates_of(X, V), bd.accelerations_of(X, V, A), 0.0
+        )
+        _close(bd.projected(X, bracket, A).rotations[0], jnp.cross(v, omega), 1e-14, "(50)")
+
+
+def test_identity_53_the_inertias_turn_projects_to_minus_omega_cross_the_momentum():
+    """(49) and (53): the slope of T = ½ω·J_cω in Z through J_c = ZJZᵀ alone (ω held),
+    projected, is 2J̃_c ∧₂ ∂T/∂J_c = -ω × J_cω, to 1e-13."""
+    rng = np.random.default_rng(23)
+    for _ in range(3):
+        Z, omega, _ = _random_rotation_state(rng)
+        X, V = _rotations_only(Z[None], omega[None])
+        energy = lambda Z, omega=omega: 0.5 * omega @ (Z @ INERTIA @ Z.T) @ omega
+        slope = bd.TensorCoordinates(X.scalars, X.unit_vectors, jax.grad(energy)(Z)[None])
+        J = Z @ INERTIA @ Z.T
+        _close(bd.projected(X, slope, V).rotations[0], -jnp.cross(omega, J @ omega), 1e-13, "(53)")
+
+
 # --- The heavy top ----------------------------------------------------------------------------
 
 TOP_MASS, TOP_ARM = 1.0, 0.3
