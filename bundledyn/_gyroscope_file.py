@@ -13,7 +13,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from . import lie
-from ._scene_file import SceneFileError, _Table
+from ._scene_file import SceneFileError, _Table, read_time
 from ._tensorial import (
     LagrangeGyroscopeChain,
     TensorCoordinates,
@@ -168,14 +168,7 @@ class GyroscopeChainFile:
             if formulation == "axes":
                 system, y0 = chain.in_axes(reference), chain.axes_state(X, V, reference)
 
-        time = root.table("time")
-        t0, t1 = time.number("t0", 0.0), time.number("t1")
-        saves = time.number("saves", 101)
-        if t1 <= t0:
-            raise time.fail("t1", f"must be later than t0 = {t0}.")
-        if saves < 2 or saves != int(saves):
-            raise time.fail("saves", "must be a whole number ≥ 2.")
-        time.done()
+        t0, t1, saves = read_time(root.table("time"))
 
         solver_table = root.table("solver", {})
         method = solver_table.string("method", "TensorialRKMK87", set(SOLVERS))
@@ -200,7 +193,7 @@ class GyroscopeChainFile:
         out.done()
         root.done()
         return cls(
-            path, text, chain, formulation, reference, system, y0, t0, t1, int(saves), make(),
+            path, text, chain, formulation, reference, system, y0, t0, t1, saves, make(),
             options, output,
         )  # fmt: skip
 

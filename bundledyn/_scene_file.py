@@ -540,6 +540,19 @@ def _state(t: _Table, system, shape, t0):
     return State(g, q, xi, qdot)
 
 
+def read_time(time: _Table) -> tuple[float, float, int]:
+    """`[time]`: `(t0, t1, saves)`, `t1` required and later than `t0` (0), `saves` (101) a
+    whole number ≥ 2."""
+    t0, t1 = time.number("t0", 0.0), time.number("t1")
+    saves = time.number("saves", 101)
+    if t1 <= t0:
+        raise time.fail("t1", f"must be later than t0 = {t0}.")
+    if saves < 2 or saves != int(saves):
+        raise time.fail("saves", "must be a whole number ≥ 2.")
+    time.done()
+    return t0, t1, int(saves)
+
+
 @dataclasses.dataclass(frozen=True)
 class SceneFile:
     r"""A simulation read from a TOML scene file: everything `simulate` needs, and the outputs.
@@ -638,14 +651,7 @@ class SceneFile:
         with root.building("scene"):
             scene = Scene(system, effects, shape, frame, mode=contact)
 
-        time = root.table("time")
-        t0, t1 = time.number("t0", 0.0), time.number("t1")
-        saves = time.number("saves", 101)
-        if t1 <= t0:
-            raise time.fail("t1", f"must be later than t0 = {t0}.")
-        if saves < 2 or saves != int(saves):
-            raise time.fail("saves", "must be a whole number ≥ 2.")
-        time.done()
+        t0, t1, saves = read_time(root.table("time"))
         initial = root.table("initial", {})
         if contact is None:
             state = _state(initial, system, shape, t0)
@@ -679,7 +685,7 @@ class SceneFile:
             raise out.fail("trajectory", "must be a file name ending in .npz.")
         out.done()
         root.done()
-        return cls(path, text, scene, state, t0, t1, int(saves), make(), options, solids, output)
+        return cls(path, text, scene, state, t0, t1, saves, make(), options, solids, output)
 
     def simulate(self, *, progress: bool = False, throw: bool = True) -> Trajectory:
         """Run the scene: `simulate` with the file's solver and options, saving `saves` times.
