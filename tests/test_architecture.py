@@ -31,7 +31,19 @@ LAYERS = (
         "identification, checks and stress",
         {"_checks", "checks", "_identify", "identify", "_stress", "stress"},
     ),
-    ("front", {"_gyroscope_file", "_viz", "viz", "_scene_file", "_identify_file", "_cli", "__main__", "__init__"}),
+    (
+        "front",
+        {
+            "_gyroscope_file",
+            "_viz",
+            "viz",
+            "_scene_file",
+            "_identify_file",
+            "_cli",
+            "__main__",
+            "__init__",
+        },
+    ),
 )
 
 
