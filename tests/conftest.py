@@ -92,16 +92,31 @@ def optimized_test_compilation():
         yield
 
 
+# Half the kernel's default limit on a process's memory maps (`vm.max_map_count`, 65530).
+MEMORY_MAPS_KEPT = 32768
+
+
+def _memory_maps():
+    try:
+        with open("/proc/self/maps", "rb") as maps:
+            return sum(1 for _ in maps)
+    except OSError:  # not Linux: no map count to watch, and no limit met in this suite
+        return 0
+
+
 @pytest.fixture(scope="module", autouse=True)
 def free_compiled_programs():
-    """Drop JAX's compiled programs after each file. Every loaded XLA CPU executable holds
-    memory maps of its own, and a worker that keeps the programs of every file it ran
-    reaches the kernel's limit on maps (`vm.max_map_count`, 65530 by default; 58578 maps
-    measured in one worker near the end of the suite), where the next compile or cache
-    load segfaults. A later file that needs one again compiles it, or loads it from the
-    on-disk cache."""
+    """Drop JAX's compiled programs after a file once the worker holds many memory maps.
+
+    Every loaded XLA CPU executable holds memory maps of its own, and a worker that keeps
+    the programs of every file it ran reaches the kernel's limit on maps (58578 measured in
+    one worker near the end of the suite), where the next compile or cache load segfaults.
+    Dropping them after every file instead made each file compile again the programs the
+    files before it had compiled: the shared registries' scenes, and thousands of
+    op-by-op programs (12,000 compiles in a run)."""
     yield
-    jax.clear_caches()
+    if _memory_maps() > MEMORY_MAPS_KEPT:
+        jax.clear_caches()
 
 
 @pytest.fixture

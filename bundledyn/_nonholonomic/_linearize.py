@@ -87,6 +87,15 @@ def stability_boundary(
 
 @functools.partial(jax.custom_jvp, nondiff_argnums=(0, 1))
 def _boundary(growth_rate, halvings, lower, upper, args):
+    return _bisection(growth_rate, halvings, lower, upper, args)
+
+
+# The bisection and the two slopes are compiled each on its own, once per growth rate (a
+# static argument): called outside `jax.jit`, a second bracket or the derivative's rule
+# reuses them, where a program holding all three compiles in more than their sum. Inside
+# `jax.jit` they are inlined.
+@eqx.filter_jit
+def _bisection(growth_rate, halvings, lower, upper, args):
     at_lower, at_upper = growth_rate(lower, args), growth_rate(upper, args)
     rising = at_upper > at_lower
     lower = eqx.error_if(
@@ -106,13 +115,22 @@ def _boundary(growth_rate, halvings, lower, upper, args):
     return 0.5 * (low + high)
 
 
+# Both derivatives in forward mode (v is a scalar): the growth rate is already a derivative
+# of the equations, and reverse mode over it compiles far larger programs. Each
+# differentiates in its own variable only, the other closed over as a constant.
+@eqx.filter_jit
+def _slope_in_speed(growth_rate, root, args):
+    return jax.jvp(lambda v: growth_rate(v, args), (root,), (jnp.ones_like(root),))[1]
+
+
+@eqx.filter_jit
+def _slope_along(growth_rate, root, args, args_tangent):
+    return jax.jvp(lambda p: growth_rate(root, p), (args,), (args_tangent,))[1]
+
+
 @_boundary.defjvp
 def _boundary_jvp(growth_rate, halvings, primals, tangents):
     lower, upper, args = primals
     root = _boundary(growth_rate, halvings, lower, upper, args)
-    # Both derivatives in forward mode (v is a scalar): the growth rate is already a
-    # derivative of the equations, and reverse mode over it compiles far larger programs.
-    # Each differentiates in its own variable only, the other closed over as a constant.
-    slope = jax.jvp(lambda v: growth_rate(v, args), (root,), (jnp.ones_like(root),))[1]
-    moved = jax.jvp(lambda p: growth_rate(root, p), (args,), (tangents[2],))[1]
-    return root, -moved / slope
+    moved = _slope_along(growth_rate, root, args, tangents[2])
+    return root, -moved / _slope_in_speed(growth_rate, root, args)
