@@ -128,16 +128,29 @@ def key():
 # worker that frees first in collection order; a long file collected late leaves the other
 # worker idle at the end of the run (longest-first is the classic remedy for that).
 LONGEST_FIRST = (
-    "test_notebooks.py",
-    "test_identify_mujoco.py",
-    "test_stress_models.py",
+    # The slow part's longest (`.ci/run` spreads it test by test, groups kept together).
     "test_identify.py",
+    "test_bicycle.py",
+    "test_identify_mujoco.py",
+    "test_notebooks.py",
     "test_stress.py",
-    "test_identify_rigid.py",
+    "test_stress_models.py",
+    "test_benchmark_nonholonomic.py",
+    # The everyday part's, as measured on 2 cores (one worker each).
     "test_adjoint.py",
-    "test_field_vjp.py",
-    "test_docs.py",
+    "test_modes.py",
+    "test_tensorial.py",
+    "test_identify_rigid.py",
     "test_invariance_dynamics.py",
+    "test_field_vjp.py",
+    "test_rolling_wheel.py",
+    "test_simulate.py",
+    "test_stage_reverse.py",
+    "test_constrained.py",
+    "test_geometry.py",
+    "test_docs.py",
+    "test_rolling.py",
+    "test_differentiation.py",
 )
 
 

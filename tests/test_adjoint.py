@@ -96,7 +96,9 @@ OPTIONS = {
     "VariationalMidpoint ts": dict(
         solver=SOLVERS["VariationalMidpoint"], dt0=0.05, saveat=diffrax.SaveAt(ts=TS, t1=True)
     ),
-    "RKMK87 steps": dict(
+    # Where the saves or the event are the point, not the solver: RKMK4, 4 stages a step.
+    "RKMK4 steps": dict(
+        solver=SOLVERS["RKMK4"],
         dt0=0.1,
         stepsize_controller=diffrax.ConstantStepSize(),
         saveat=diffrax.SaveAt(t0=True, steps=True),
@@ -105,7 +107,7 @@ OPTIONS = {
         event=diffrax.Event(_crossing, optx.Newton(1e-12, 1e-12)),
         saveat=diffrax.SaveAt(ts=TS, t1=True),
     ),
-    "RKMK87 boolean event": dict(event=diffrax.Event(_past)),
+    "RKMK4 boolean event": dict(solver=SOLVERS["RKMK4"], dt0=0.05, event=diffrax.Event(_past)),
 }
 
 CHECKPOINTED = ADJOINTS["checkpointed"]
