@@ -1,10 +1,13 @@
 """The `bundledyn` command line: `demo`, `run SCENE.toml` and `check MODEL`."""
 
 import argparse
+import contextlib
 import datetime
 import json
 import pathlib
+import signal
 import sys
+import threading
 import time
 
 
@@ -31,6 +34,10 @@ def _solve(scene_file, *, progress=False):
     return traj, elapsed
 
 
+def _count(n: int, noun: str) -> str:
+    return f"{n} {noun}" if n == 1 else f"{n} {noun}s"
+
+
 def _positive(kind):
     """An argparse type: `kind` (int or float) parsed and required to be positive."""
 
@@ -45,6 +52,24 @@ def _positive(kind):
 
     parse.__name__ = f"positive {kind.__name__}"
     return parse
+
+
+@contextlib.contextmanager
+def _terminated_as_exit():
+    """SIGTERM raises `SystemExit(143)` while a command runs, so a file being written is
+    removed (`atomic_path`) rather than left half-written, as the default handler would."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+
+    def terminate(signum, frame):
+        raise SystemExit(128 + signum)
+
+    previous = signal.signal(signal.SIGTERM, terminate)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, previous)
 
 
 class _Failure(Exception):
@@ -63,7 +88,7 @@ def _summary(scene_file, traj, diagnostics, elapsed):
     scene = scene_file.scene
     print(
         f"  system: {type(scene.system).__name__}, {scene.system.shape_dim} shape coordinates; "
-        f"{len(scene.effects)} effects; mode {type(scene.mode).__name__}; "
+        f"{_count(len(scene.effects), 'effect')}; mode {type(scene.mode).__name__}; "
         f"seen from {frame_name(scene)}"
     )
     print(
@@ -150,6 +175,13 @@ def run(args) -> int:
     out = pathlib.Path(args.out)
     if not out.is_dir():
         raise _Failure(f"{out}: the output folder does not exist.")
+    if pathlib.Path(args.scene).suffix.lower() in (".xml", ".urdf"):
+        raise bd.SceneFileError(
+            f"{args.scene}: `bundledyn run` takes a scene file (.toml) that names the model, "
+            f'e.g. [system] type = "mjcf", path = "{pathlib.Path(args.scene).name}", and '
+            "[time] t1 = 1.0 (docs/how-to/scene-files.md); `bundledyn check` and "
+            "`bundledyn stress` take a model file as it is."
+        )
     if bd.is_gyroscope_file(args.scene):
         return _run_gyroscopes(bd.GyroscopeChainFile.load(args.scene), out, args)
     scene_file = bd.SceneFile.load(args.scene)
@@ -380,7 +412,8 @@ def main(argv=None) -> int:
     bd.use_cpu_xla_flags()
     bd.enable_x64()
     try:
-        return args.run(args)
+        with _terminated_as_exit():
+            return args.run(args)
     except bd.SceneFileError as error:
         print(f"bundledyn: error: {error}", file=sys.stderr)
         return 2

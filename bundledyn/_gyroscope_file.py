@@ -13,7 +13,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from . import lie
-from ._scene_file import SceneFileError, _Table, read_time
+from ._scene_file import SceneFileError, _Table, read_output, read_solver, read_time
 from ._tensorial import (
     LagrangeGyroscopeChain,
     TensorCoordinates,
@@ -109,8 +109,10 @@ class GyroscopeChainFile:
       about the parent's $y$, then the child's $x$).
     - `[time]` `t1` (required), `t0` (0), `saves` (101).
     - `[solver]` `method` (`TensorialRKMK87` default, `TensorialRKMK54`, `TensorialRKMK4`,
-      which needs `dt0`), `rtol`, `atol` (1e-10), `max_steps` (100000).
-    - `[output]` `trajectory` (`.npz` name; default the file's name), `plots` (true).
+      which needs `dt0`), `rtol`, `atol` (1e-10), `max_steps` (100000), checked as in
+      scene files (`SceneFile`).
+    - `[output]` `trajectory` (a `.npz` file name, written into the run's output folder;
+      default the file's name), `plots` (true).
 
     **Fields:** `path`, `text`, `chain`, `formulation`, `reference`, `system`, `y0`, `t0`,
     `t1`, `saves`, `solver`, `options`, `output`.
@@ -170,30 +172,19 @@ class GyroscopeChainFile:
 
         t0, t1, saves = read_time(root.table("time"))
 
-        solver_table = root.table("solver", {})
-        method = solver_table.string("method", "TensorialRKMK87", set(SOLVERS))
-        make, fixed = SOLVERS[method]
-        options = {
-            "rtol": solver_table.number("rtol", 1e-10),
-            "atol": solver_table.number("atol", 1e-10),
-            "dt0": solver_table.number("dt0", None),
-            "max_steps": int(solver_table.number("max_steps", 100_000)),
-        }
-        if fixed and options["dt0"] is None:
-            raise solver_table.fail("dt0", f"{method} takes fixed steps: give the step `dt0`.")
-        solver_table.done()
-
+        solver, options = read_solver(
+            root.table("solver", {}),
+            SOLVERS,
+            method="TensorialRKMK87",
+            tolerance=1e-10,
+            max_steps=100_000,
+        )
         out = root.table("output", {})
-        output = {
-            "trajectory": out.string("trajectory", f"{path.stem}.npz"),
-            "plots": out.boolean("plots", True),
-        }
-        if not output["trajectory"].endswith(".npz"):
-            raise out.fail("trajectory", "must be a file name ending in .npz.")
+        output = read_output(out, path.stem)
         out.done()
         root.done()
         return cls(
-            path, text, chain, formulation, reference, system, y0, t0, t1, saves, make(),
+            path, text, chain, formulation, reference, system, y0, t0, t1, saves, solver,
             options, output,
         )  # fmt: skip
 

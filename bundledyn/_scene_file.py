@@ -7,6 +7,7 @@ it, `bundledyn check scene.toml` checks its model. Every table and key is descri
 
 import contextlib
 import dataclasses
+import difflib
 import pathlib
 import tomllib
 from typing import Any
@@ -41,6 +42,7 @@ from ._nonholonomic import (
     TorusContact,
 )
 from ._paths import models
+from ._precision import check_tolerances
 from ._scene import Scene, model_effects, system_of_parts
 from ._simulate import simulate
 from ._solids import Box, Capsule, Ellipsoid
@@ -77,9 +79,14 @@ class _Table:
     """One TOML table being read: typed getters that name the field when they fail."""
 
     def __init__(self, file, prefix, data):
-        if not isinstance(data, dict):
-            raise SceneFileError(f"{file}: `{prefix}` must be a table, got {data!r}.")
         self.file, self.prefix, self.data, self.used = file, prefix, data, set()
+        if not isinstance(data, dict):
+            raise SceneFileError(f"{file}: {self.name} must be a table, got {data!r}.")
+
+    @property
+    def name(self) -> str:
+        """How messages name this table: `[prefix]`, or the file's top level."""
+        return f"`[{self.prefix}]`" if self.prefix else "the file's top level"
 
     def field(self, key):
         return f"{self.prefix}.{key}" if self.prefix else key
@@ -95,17 +102,32 @@ class _Table:
         self.used.add(key)
         if key not in self.data:
             if default is ...:
-                raise self.fail(key, "this field is required.")
+                raise self.fail(key, "this field is required." + self._misspelt(key))
             return default
         return self.data[key]
 
+    def _misspelt(self, key) -> str:
+        """A hint naming a key of this table that looks like a misspelling of `key`."""
+        close = difflib.get_close_matches(key, [k for k in self.data if k != key], n=1)
+        return f" The table has `{self.field(close[0])}`: a misspelling of it?" if close else ""
+
     def number(self, key, default: Any = ...):
+        """A finite number (TOML's `nan` and `inf` are refused)."""
         if not self.has(key) and default is not ...:
             return self.raw(key, default)
         value = self.raw(key)
         if isinstance(value, bool) or not isinstance(value, int | float):
             raise self.fail(key, "must be a number.")
+        if not np.isfinite(value):
+            raise self.fail(key, "must be a finite number.")
         return float(value)
+
+    def whole(self, key, default: int, minimum: int) -> int:
+        """A whole number of at least `minimum`."""
+        value = self.number(key, default)
+        if value < minimum or value != int(value):
+            raise self.fail(key, f"must be a whole number ≥ {minimum}.")
+        return int(value)
 
     def boolean(self, key, default: Any = ...):
         value = self.raw(key, default)
@@ -170,7 +192,8 @@ class _Table:
         except SceneFileError:
             raise
         except ValueError as error:
-            raise SceneFileError(f"{self.file}: `{self.prefix}` ({what}): {error}") from None
+            where = f"{self.name} ({what})" if self.prefix else f"the {what}"
+            raise SceneFileError(f"{self.file}: {where}: {error}") from None
 
 
 def _numeric(value):
@@ -544,13 +567,54 @@ def read_time(time: _Table) -> tuple[float, float, int]:
     """`[time]`: `(t0, t1, saves)`, `t1` required and later than `t0` (0), `saves` (101) a
     whole number ≥ 2."""
     t0, t1 = time.number("t0", 0.0), time.number("t1")
-    saves = time.number("saves", 101)
+    saves = time.whole("saves", 101, minimum=2)
     if t1 <= t0:
         raise time.fail("t1", f"must be later than t0 = {t0}.")
-    if saves < 2 or saves != int(saves):
-        raise time.fail("saves", "must be a whole number ≥ 2.")
     time.done()
-    return t0, t1, int(saves)
+    return t0, t1, saves
+
+
+def read_solver(table: _Table, solvers: dict, *, method: str, tolerance: float, max_steps: int):
+    """`[solver]`: `(solver, options)`, the method one of `solvers` (name -> (class, takes
+    fixed steps)); `rtol` in (0, 1) and `atol` ≥ 0 (defaults `tolerance`) that float64 can
+    meet; `dt0` (required by fixed-step methods) > 0; `max_steps` a whole number ≥ 1."""
+    name = table.string("method", method, set(solvers))
+    make, fixed = solvers[name]
+    rtol, atol = table.number("rtol", tolerance), table.number("atol", tolerance)
+    if not 0.0 < rtol < 1.0:
+        raise table.fail("rtol", "must be between 0 and 1 (a relative error, e.g. 1e-8).")
+    if atol < 0.0:
+        raise table.fail("atol", "must be ≥ 0.")
+    try:
+        check_tolerances(rtol, atol, np.float64)
+    except ValueError as error:
+        raise table.fail("rtol", str(error)) from None
+    dt0 = table.number("dt0", None) if fixed or table.has("dt0") else None
+    if fixed and dt0 is None:
+        raise table.fail("dt0", f"{name} takes fixed steps: give the step `dt0`.")
+    if dt0 is not None and dt0 <= 0.0:
+        raise table.fail("dt0", "must be positive.")
+    options = {
+        "rtol": rtol,
+        "atol": atol,
+        "dt0": dt0,
+        "max_steps": table.whole("max_steps", max_steps, minimum=1),
+    }
+    table.done()
+    return make(), options
+
+
+def read_output(table: _Table, stem: str) -> dict:
+    """`[output]`'s `trajectory` (a bare `.npz` file name, written into the run's output
+    folder; default `stem.npz`) and `plots` (true); the caller reads its other fields."""
+    trajectory = table.string("trajectory", f"{stem}.npz")
+    if pathlib.PurePath(trajectory).name != trajectory or not trajectory.endswith(".npz"):
+        raise table.fail(
+            "trajectory",
+            "must be a file name ending in .npz, without folders (the run writes it into "
+            "its output folder, `--out`).",
+        )
+    return {"trajectory": trajectory, "plots": table.boolean("plots", True)}
 
 
 @dataclasses.dataclass(frozen=True)
@@ -598,10 +662,14 @@ class SceneFile:
       angular first) or `"zero_momentum"` for $\xi = -A(q)\dot q$.
     - `[time]` `t1` (required), `t0` (0), `saves` (saved times, evenly spaced; 101).
     - `[solver]` `method` (`RKMK87` default, `RKMK54`, `RKMK4`, `LieEuler`,
-      `VariationalMidpoint`, `Tsit5`, `Dopri5`, `Dopri8`, `Kvaerno5`), `rtol`, `atol`,
-      `dt0` (required by the fixed-step methods), `max_steps`.
-    - `[output]` `trajectory` (`.npz` name; default the scene's name), `plots` (true),
-      `animation` (false), `frames` (60).
+      `VariationalMidpoint`, `Tsit5`, `Dopri5`, `Dopri8`, `Kvaerno5`), `rtol` (between 0
+      and 1), `atol` (≥ 0), `dt0` (positive; required by the fixed-step methods),
+      `max_steps` (a whole number ≥ 1).
+    - `[output]` `trajectory` (a `.npz` file name, written into the run's output folder;
+      default the scene's name), `plots` (true), `animation` (false), `frames` (≥ 2; 60).
+
+    Every number must be finite; a required field that is missing is named, with the
+    table's key that looks like a misspelling of it.
 
     **Fields:** `path`, `text` (the file as read), `scene`, `state`, `t0`, `t1`, `saves`,
     `solver`, `options` (keyword arguments of `simulate`), `solids` (one per body, or
@@ -660,32 +728,17 @@ class SceneFile:
         else:
             state = _contact_state(initial, contact)
 
-        solver_table = root.table("solver", {})
-        method = solver_table.string("method", "RKMK87", set(SOLVERS))
-        make, fixed = SOLVERS[method]
-        options = {
-            "rtol": solver_table.number("rtol", 1e-8),
-            "atol": solver_table.number("atol", 1e-8),
-            "max_steps": int(solver_table.number("max_steps", 16384)),
-        }
-        dt0 = solver_table.number("dt0", None) if fixed or solver_table.has("dt0") else None
-        if fixed and dt0 is None:
-            raise solver_table.fail("dt0", f"{method} takes fixed steps: give the step `dt0`.")
-        options["dt0"] = dt0
-        solver_table.done()
-
+        solver, options = read_solver(
+            root.table("solver", {}), SOLVERS, method="RKMK87", tolerance=1e-8, max_steps=16384
+        )
         out = root.table("output", {})
-        output = {
-            "trajectory": out.string("trajectory", f"{path.stem}.npz"),
-            "plots": out.boolean("plots", True),
+        output = read_output(out, path.stem) | {
             "animation": out.boolean("animation", False),
-            "frames": int(out.number("frames", 60)),
+            "frames": out.whole("frames", 60, minimum=2),
         }
-        if not output["trajectory"].endswith(".npz"):
-            raise out.fail("trajectory", "must be a file name ending in .npz.")
         out.done()
         root.done()
-        return cls(path, text, scene, state, t0, t1, saves, make(), options, solids, output)
+        return cls(path, text, scene, state, t0, t1, saves, solver, options, solids, output)
 
     def simulate(self, *, progress: bool = False, throw: bool = True) -> Trajectory:
         """Run the scene: `simulate` with the file's solver and options, saving `saves` times.

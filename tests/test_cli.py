@@ -1,6 +1,9 @@
 """The command line: `run` writes what a scene file asks for, `check` reports, mistakes exit cleanly."""
 
 import json
+import os
+import pathlib
+import signal
 import subprocess
 import sys
 import textwrap
@@ -114,6 +117,7 @@ def test_run_names_the_frame_of_every_printed_quantity(tmp_path, capsys):
     lines = capsys.readouterr().out.splitlines()
     printed = {line.split()[0]: line for line in lines[1:] if not line.startswith("  wrote")}
     assert printed["system:"].endswith("seen from the falling frame")
+    assert "; 1 effect; " in printed["system:"]
     assert printed["energy"].startswith("  energy in the Galilean frame: E(t1) - E(t0) = ")
     assert printed["spatial"].startswith("  spatial momentum in the Galilean frame (about its")
     assert printed["poses"].startswith("  poses in the falling frame: rotations orthogonal to")
@@ -127,6 +131,32 @@ def test_bad_scene_exits_with_a_message_and_writes_nothing(tmp_path, capsys):
     err = capsys.readouterr().err
     assert "bad.toml" in err and "system.size" in err and "[0.6, 0.4]" in err
     assert [p.name for p in tmp_path.iterdir()] == ["bad.toml"]
+
+
+def test_run_refuses_a_model_file_saying_what_it_takes(tmp_path, capsys):
+    assert main(["run", str(bd.models / "chain5.xml"), "--out", str(tmp_path)]) == 2
+    err = capsys.readouterr().err
+    assert "chain5.xml" in err and "scene file (.toml)" in err and 'type = "mjcf"' in err
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_a_terminated_run_leaves_no_file_behind(tmp_path, monkeypatch):
+    """SIGTERM while the trajectory is being written: the half-written file goes, and the
+    command exits as a terminated process does (128 + 15)."""
+    scene = tmp_path / "spin.toml"
+    scene.write_text(DZHANIBEKOV.replace("t1 = 4.0", "t1 = 1.0"))
+
+    def terminated_while_writing(path, **arrays):
+        pathlib.Path(path).write_bytes(b"half a file")
+        os.kill(os.getpid(), signal.SIGTERM)
+
+    handler = signal.getsignal(signal.SIGTERM)
+    monkeypatch.setattr(np, "savez", terminated_while_writing)
+    with pytest.raises(SystemExit) as info:
+        main(["run", str(scene), "--out", str(tmp_path), "--no-pictures"])
+    assert info.value.code == 128 + signal.SIGTERM
+    assert [p.name for p in tmp_path.iterdir()] == ["spin.toml"]
+    assert signal.getsignal(signal.SIGTERM) == handler
 
 
 def test_failed_solve_exits_and_leaves_no_output(tmp_path, capsys):

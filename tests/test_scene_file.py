@@ -205,11 +205,11 @@ MISTAKES = {
         _replace(
             RIGID, "inertia = [1.0, 2.0, 3.0]", "inertia = [[1, 0, 0], [0, -1, 0], [0, 0, 1]]"
         ),
-        ["`system`", "positive definite", "-1."],
+        ["`[system]`", "positive definite", "-1."],
     ),
     "impossible moments": (
         _replace(RIGID, "inertia = [1.0, 2.0, 3.0]", "inertia = [1.0, 1.0, 3.0]"),
-        ["`system`", "triangle inequality"],
+        ["`[system]`", "triangle inequality"],
     ),
     "missing model file": (
         '[system]\ntype = "mjcf"\npath = "missing.xml"\n[time]\nt1 = 1.0\n',
@@ -238,6 +238,44 @@ MISTAKES = {
         ["effects[0].stiffness", "[1, 2]", "list of 6 numbers"],
     ),
     "backwards time": (_replace(RIGID, "t1 = 1.0", "t1 = -1.0"), ["time.t1", "later than t0"]),
+    "a mode the system cannot take": (
+        '[system]\ntype = "affine_body"\nmass = 1.0\nradii = [1, 1, 1]\n'
+        '[rolling]\nsurface = "sphere"\nradius = 0.5\n[time]\nt1 = 1.0\n',
+        ["broken.toml: the scene: `RollingMode`", "rigid body"],
+    ),
+    "a time that is not a number": (
+        _replace(RIGID, "t1 = 1.0", "t1 = nan"),
+        ["time.t1", "nan", "finite"],
+    ),
+    "a misspelt field": (
+        _replace(RIGID, "mass = 2.0", "mas = 2.0"),
+        ["system.mass", "required", "`system.mas`", "misspelling"],
+    ),
+    "a relative tolerance above 1": (
+        RIGID + "[solver]\nrtol = 10\n",
+        ["solver.rtol", "10", "between 0 and 1"],
+    ),
+    "a negative tolerance": (
+        RIGID + "[solver]\nrtol = -1e-8\n",
+        ["solver.rtol", "-1e-08", "between 0 and 1"],
+    ),
+    "tolerances below rounding": (
+        RIGID + "[solver]\nrtol = 1e-20\natol = 1e-20\n",
+        ["solver.rtol", "rounding error"],
+    ),
+    "no steps": (RIGID + "[solver]\nmax_steps = 0\n", ["solver.max_steps", "whole number ≥ 1"]),
+    "a negative step": (
+        RIGID + '[solver]\nmethod = "RKMK4"\ndt0 = -0.1\n',
+        ["solver.dt0", "positive"],
+    ),
+    "no frames": (
+        RIGID + "[output]\nanimation = true\nframes = 0\n",
+        ["output.frames", "whole number ≥ 2"],
+    ),
+    "a trajectory in a folder": (
+        RIGID + '[output]\ntrajectory = "sub/dir/x.npz"\n',
+        ["output.trajectory", "'sub/dir/x.npz'", "without folders"],
+    ),
 }
 
 
