@@ -95,6 +95,33 @@ def check_tolerances(rtol: ArrayLike, atol: ArrayLike, dtype) -> None:
         )
 
 
+def checked_tolerances(rtol: ArrayLike, atol: ArrayLike, dtype) -> tuple[jax.Array, jax.Array]:
+    """`check_tolerances`'s refusals for traced tolerances (inside `jax.jit` or `jax.vmap`),
+    where no Python value is there to check: the solve stops with equinox's runtime error.
+
+    **Arguments:**
+
+    - `rtol`, `atol`: the step-size controller's tolerances, traced or not.
+    - `dtype`: the floating dtype the solve runs in.
+
+    **Returns:**
+
+    `(rtol, atol)` as arrays, checked when the program runs.
+    """
+    r, a = jnp.asarray(rtol), jnp.asarray(atol)
+    eps = float(jnp.finfo(dtype).eps)
+    r = equinox.error_if(
+        r, jnp.any(r < 0) | jnp.any(a < 0), "simulate: tolerances must be non-negative."
+    )
+    r = equinox.error_if(
+        r,
+        jnp.all(r < eps) & jnp.all(a < eps),
+        f"simulate: rtol and atol are both below {jnp.dtype(dtype).name}'s rounding error "
+        f"{eps:.1e}: no step size can meet them; {_advice(dtype)}.",
+    )
+    return jnp.asarray(r), a
+
+
 def default_residual_tolerance(dtype) -> float:
     """The relative residual below which a computed invariance condition counts as zero.
 

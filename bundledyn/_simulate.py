@@ -3,15 +3,17 @@
 import dataclasses
 import functools
 import inspect
+from typing import TypeVar
 
 import diffrax
 import equinox as eqx
 import jax
 import jax.numpy as jnp
 import jax.tree_util as jtu
+import numpy as np
 
 from . import lie
-from ._precision import check_tolerances
+from ._precision import check_tolerances, checked_tolerances
 from ._scene import Scene
 from ._solver._adjoint import StoredStepsAdjoint
 from ._solver._base import AbstractLieGroupSolver
@@ -20,6 +22,7 @@ from ._solver._starting_step import starting_step
 from ._state import State
 from ._term import SceneTerm
 from ._trajectory import Trajectory
+from ._validation import concrete
 
 # The solver `simulate` integrates with when given none (benchmarks read it from here).
 DEFAULT_SOLVER = RKMK87
@@ -86,6 +89,15 @@ def _interpolates(saveat: diffrax.SaveAt, event) -> bool:
     return saveat.dense or event is not None or any(s.ts is not None for s in subs)
 
 
+_Controller = TypeVar("_Controller", bound=diffrax.AbstractAdaptiveStepSizeController)
+
+
+def _with_checked_tolerances(controller: _Controller, dtype) -> _Controller:
+    """`controller` with its tolerances checked when the solve runs (`checked_tolerances`)."""
+    checked = checked_tolerances(controller.rtol, controller.atol, dtype)
+    return eqx.tree_at(lambda c: (c.rtol, c.atol), controller, checked)
+
+
 def default_adjoint(solver) -> diffrax.AbstractAdjoint:
     """The adjoint `simulate` differentiates `solver`'s solves with when given none."""
     if isinstance(solver, AbstractLieGroupSolver):
@@ -109,6 +121,10 @@ def _numbers_as_data(solve, signature: inspect.Signature):
         if given["stepsize_controller"] is None and _adaptive(given["solver"]):
             # Here, not in the compiled solve, where the numbers arrive traced.
             check_tolerances(given["rtol"], given["atol"], given["state0"].g.dtype)
+        for name in ("t0", "t1"):
+            value = concrete(given[name])
+            if value is not None and not np.all(np.isfinite(value)):
+                raise ValueError(f"simulate: `{name}` must be finite, got {given[name]}.")
         given.update({name: _traced(given[name]) for name in _NUMBERS})
         return solve(*bound.args, **bound.kwargs)
 
@@ -174,7 +190,9 @@ def simulate(
       `diffrax.PIDController` with Gustafsson's PI coefficients (`pcoeff=0.4`,
       `icoeff=0.3`); unused when `stepsize_controller` is given. Negative tolerances, and
       tolerances below the working precision's rounding error, raise `ValueError` (no step
-      size meets them); ones within 100 times it warn.
+      size meets them), or, traced inside `jax.jit`, stop the solve with equinox's runtime
+      error; ones within 100 times it warn. A `t0` or `t1` that is not finite is refused
+      the same two ways.
     - `dt0`: the initial step; required by fixed-step solvers, where it is the step. For
       adaptive ones it defaults to Hairer, Nørsett & Wanner's starting step (two field
       evaluations before the stepping loop, which add one copy of the field to the
@@ -224,6 +242,10 @@ def simulate(
     adaptive = isinstance(controller, diffrax.AbstractAdaptiveStepSizeController)
     if adaptive:
         check_tolerances(controller.rtol, controller.atol, y0[0].dtype)
+    # Traced times (inside `jax.jit`) are checked when the solve runs.
+    t1 = eqx.error_if(
+        t1, ~(jnp.isfinite(t0) & jnp.isfinite(t1)), "simulate: `t0` and `t1` must be finite."
+    )
     if dt0 is None and adaptive and isinstance(solver, diffrax.AbstractAdaptiveSolver):
         h = starting_step(
             term,
@@ -248,7 +270,9 @@ def simulate(
         dt0,
         y0,
         saveat=saveat,
-        stepsize_controller=controller,
+        stepsize_controller=(
+            _with_checked_tolerances(controller, y0[0].dtype) if adaptive else controller
+        ),
         adjoint=default_adjoint(solver) if adjoint is None else adjoint,
         event=event,
         max_steps=max_steps,

@@ -136,3 +136,14 @@ def test_battery_is_one_compiled_call_reused(key):
 def test_bad_shapes_are_refused(key):
     with pytest.raises(ValueError, match=r"shapes of shape \(n >= 1, 1\)"):
         bd.checks.galilean_invariance(SYSTEMS["chain2"](), key, shapes=np.zeros((4, 5)))
+
+
+def test_the_report_refuses_vmap_and_names_the_checks_that_batch():
+    system = SYSTEMS["chain2"]()
+    keys = jax.random.split(jax.random.key(0), 2)
+    with pytest.raises(TypeError, match="galilean_conditions"):
+        jax.vmap(lambda k: bd.checks.galilean_invariance(system, k, n=4))(keys)
+    # What the message advises: the conditions' residuals, batched over shapes.
+    shapes = jax.random.uniform(keys[0], (4, system.shape_dim), minval=-1.0, maxval=1.0)
+    residuals = jax.vmap(lambda q: bd.checks.galilean_conditions(system, q).residuals)(shapes)
+    assert residuals.shape == (4, 3) and float(jnp.max(residuals)) < 1e-10

@@ -1,6 +1,7 @@
 """Simulation (issue: dynamics): closed forms, conservation laws, holonomy, gradients, errors."""
 
 import diffrax
+import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -445,3 +446,28 @@ def test_simulate_skips_the_dense_only_stage_when_nothing_interpolates():
         dict(event=never),
     ]:
         assert 14 in lengths(**kwargs) and 13 not in lengths(**kwargs)
+
+
+def test_a_horizon_or_tolerances_no_solve_can_meet_are_refused_inside_jit_too():
+    """Outside `jax.jit` a time that is not finite raises `ValueError`; inside, where the
+    numbers are traced, the same refusals and the tolerances' stop the compiled solve."""
+    scene = bd.Scene(chain(2))
+    d = scene.system.shape_dim
+    xi = jnp.array([0.0, 1.0, 0.0, 0.0, 0.0, 0.0])
+    state = bd.State(jnp.eye(4), jnp.zeros(d), xi, jnp.full(d, 0.3))
+    with pytest.raises(ValueError, match="`t1` must be finite"):
+        bd.simulate(scene, state, float("nan"))
+
+    @eqx.filter_jit  # (under `jax.jit` the same errors arrive wrapped in XLA's ValueError)
+    def final_pose(t1, rtol, atol):
+        return bd.simulate(scene, state, t1, rtol=rtol, atol=atol, solver=bd.RKMK54()).g[-1]
+
+    assert np.all(np.isfinite(final_pose(*jnp.array([1.0, 1e-8, 1e-8]))))
+    for t1, rtol, atol, message in [
+        (jnp.nan, 1e-8, 1e-8, "`t0` and `t1` must be finite"),
+        (jnp.inf, 1e-8, 1e-8, "`t0` and `t1` must be finite"),
+        (1.0, -1e-8, 1e-8, "non-negative"),
+        (1.0, 1e-30, 1e-30, "below float64's rounding error"),
+    ]:
+        with pytest.raises(eqx.EquinoxRuntimeError, match=message):
+            jax.block_until_ready(final_pose(*jnp.array([t1, rtol, atol])))

@@ -4,6 +4,7 @@ import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
+from jax.core import Tracer
 
 from .._precision import default_residual_tolerance, warn_in_callers_code
 from .._systems._base import AbstractSystem
@@ -138,6 +139,14 @@ def galilean_invariance(
     An `InvarianceReport`: `report.passed`, `report.failed`, `report.worst`, and a readable
     `str(report)`.
     """
+    if any(isinstance(leaf, Tracer) for leaf in jax.tree.leaves((system, key, shapes))):
+        raise TypeError(
+            "`galilean_invariance` returns a report of concrete values, so it cannot run under "
+            "`jax.vmap` or `jax.jit`. Batch its arrays instead: `jax.vmap` over "
+            "`bundledyn.checks.galilean_conditions(system, q)` and `rigid_structure(system, q)` "
+            "(their `.residuals`) checks many systems or shapes in one call; or call it once per "
+            "system."
+        )
     d = system.shape_dim
     if shapes is None:
         shapes = scale * jax.random.uniform(key, (n, d), minval=-1.0, maxval=1.0)
