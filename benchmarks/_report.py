@@ -22,6 +22,4 @@ def provenance_lines(report, key="provenance", what="Code"):
     else:
         code = f"commit `{p['commit'][:12]}`"
         code += {True: " with uncommitted changes", False: " (clean)"}.get(p["dirty"], "")
-    if p.get("note"):
-        code += f" ({p['note']})"
     return [f"{what}: bundledyn {p['bundledyn']}, {code}; run {p['date']} on {p['machine']}.", ""]

@@ -109,11 +109,14 @@ def default_adjoint(solver) -> diffrax.AbstractAdjoint:
 _NUMBERS = ("t1", "t0", "rtol", "atol", "dt0")
 
 
-def _numbers_as_data(solve, signature: inspect.Signature):
-    """`solve` (compiled by `equinox.filter_jit`, which holds Python numbers static: each new
-    horizon or tolerance compiled the whole solve again) called with its `_NUMBERS` as
-    weakly typed JAX scalars, after checking the tolerances on the caller's values."""
+def _numbers_as_data(function):
+    """`function` compiled by `equinox.filter_jit`, and called with its `_NUMBERS` as weakly
+    typed JAX scalars after checking the caller's values (`filter_jit` holds Python numbers
+    static: each new horizon or tolerance compiled the whole solve again). A decorator, so
+    that the documentation reads `function`'s own signature and docstring."""
+    solve, signature = eqx.filter_jit(function), inspect.signature(function)
 
+    @functools.wraps(function)
     def simulate(*args, **kwargs):
         bound = signature.bind(*args, **kwargs)
         bound.apply_defaults()
@@ -152,6 +155,7 @@ def _scalar(x: float, x64: bool) -> jax.Array:
         return jnp.asarray(x)
 
 
+@_numbers_as_data
 def simulate(
     scene: Scene,
     state0: State,
@@ -292,7 +296,3 @@ def simulate(
     return Trajectory(
         sol.ts, states.g, states.q, states.xi, states.qdot, U, stats, sol.result, scene
     )
-
-
-_solve = eqx.filter_jit(simulate)
-simulate = functools.wraps(simulate)(_numbers_as_data(_solve, inspect.signature(simulate)))

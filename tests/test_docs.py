@@ -63,6 +63,14 @@ def test_every_public_name_has_a_documented_reference_entry(site):
     assert not bare, f"rendered without documentation: {bare}"
 
 
+def test_simulate_is_documented_as_a_function_with_its_signature(site):
+    page = html.unescape(
+        re.sub(r"<[^>]+>", "", (site / "api" / "simulate" / "index.html").read_text())
+    )
+    assert "functools.wraps" not in page and "_numbers_as_data" not in page
+    assert re.search(r"simulate\(\s*scene.*state0.*t1.*rtol.*=.*1e-08", page, flags=re.S)
+
+
 def test_the_reference_check_sees_a_missing_docstring(site, tmp_path):
     """The check above reads what a reader sees: an entry with its text removed is caught."""
     page = (site / "api" / "simulate" / "index.html").read_text()

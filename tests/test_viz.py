@@ -82,6 +82,14 @@ def test_plots_are_written_in_the_format_of_their_suffix(spin, tmp_path):
     assert (tmp_path / "motion.svg").read_text().lstrip().startswith("<?xml")
 
 
+def test_figures_show_as_pictures_where_no_backend_is_set_up(spin):
+    # What a fresh notebook (no `%matplotlib inline`) asks of a cell's value.
+    from IPython.core.formatters import DisplayFormatter
+
+    data, _ = DisplayFormatter().format(viz.plot_motion(spin))
+    assert data["image/png"][:8] == b"\x89PNG\r\n\x1a\n"
+
+
 def test_work_precision_diagram(tmp_path):
     def points(errors):
         return [{"ok": True, "error": e, "time": {"median": 1e-3 / e**0.2}} for e in errors]
