@@ -13,7 +13,14 @@ import jax.numpy as jnp
 import numpy as np
 
 from . import lie
-from ._scene_file import SceneFileError, _Table, read_output, read_solver, read_time
+from ._scene_file import (
+    SceneFileError,
+    _Table,
+    read_output,
+    read_solver,
+    read_time,
+    tolerances_in_precision,
+)
 from ._tensorial import (
     LagrangeGyroscopeChain,
     TensorCoordinates,
@@ -191,10 +198,12 @@ class GyroscopeChainFile:
     def solve(self, *, throw: bool = True) -> diffrax.Solution:
         """Integrate the chain with the file's solver, saving `saves` times."""
         fixed = isinstance(self.solver, TensorialRKMK4)
+        dtype = jax.tree.leaves(self.y0)[0].dtype
+        options = tolerances_in_precision(self.options, dtype, self.path)
         controller = (
             diffrax.ConstantStepSize()
             if fixed
-            else diffrax.PIDController(rtol=self.options["rtol"], atol=self.options["atol"])
+            else diffrax.PIDController(rtol=options["rtol"], atol=options["atol"])
         )
         ts = jnp.linspace(self.t0, self.t1, self.saves)
         return _solve(

@@ -122,6 +122,17 @@ def checked_tolerances(rtol: ArrayLike, atol: ArrayLike, dtype) -> tuple[jax.Arr
     return jnp.asarray(r), a
 
 
+def default_tolerance(dtype) -> float:
+    """`simulate`'s default `rtol` and `atol` in `dtype`: 1e-8, or 1000 rounding errors where
+    that is larger (1.2e-4 in float32, which cannot meet 1e-8).
+
+    **Arguments:**
+
+    - `dtype`: the floating dtype the solve runs in.
+    """
+    return max(1e-8, 1000.0 * float(jnp.finfo(dtype).eps))
+
+
 def default_residual_tolerance(dtype) -> float:
     """The relative residual below which a computed invariance condition counts as zero.
 

@@ -42,7 +42,7 @@ from ._nonholonomic import (
     TorusContact,
 )
 from ._paths import models
-from ._precision import check_tolerances
+from ._precision import check_tolerances, default_tolerance, warn_in_callers_code
 from ._scene import Scene, model_effects, system_of_parts
 from ._simulate import simulate
 from ._solids import Box, Capsule, Ellipsoid
@@ -574,19 +574,22 @@ def read_time(time: _Table) -> tuple[float, float, int]:
     return t0, t1, saves
 
 
-def read_solver(table: _Table, solvers: dict, *, method: str, tolerance: float, max_steps: int):
+def read_solver(
+    table: _Table, solvers: dict, *, method: str, tolerance: float | None, max_steps: int
+):
     """`[solver]`: `(solver, options)`, the method one of `solvers` (name -> (class, takes
-    fixed steps)); `rtol` in (0, 1) and `atol` ≥ 0 (defaults `tolerance`) that float64 can
-    meet; `dt0` (required by fixed-step methods) > 0; `max_steps` a whole number ≥ 1."""
+    fixed steps)); `rtol` in (0, 1) and `atol` ≥ 0 (defaults `tolerance`; `None`: the
+    working precision's, `simulate`'s default) that float64 can meet; `dt0` (required by
+    fixed-step methods) > 0; `max_steps` a whole number ≥ 1."""
     name = table.string("method", method, set(solvers))
     make, fixed = solvers[name]
     rtol, atol = table.number("rtol", tolerance), table.number("atol", tolerance)
-    if not 0.0 < rtol < 1.0:
+    if rtol is not None and not 0.0 < rtol < 1.0:
         raise table.fail("rtol", "must be between 0 and 1 (a relative error, e.g. 1e-8).")
-    if atol < 0.0:
+    if atol is not None and atol < 0.0:
         raise table.fail("atol", "must be ≥ 0.")
     try:
-        check_tolerances(rtol, atol, np.float64)
+        check_tolerances(1e-8 if rtol is None else rtol, 1e-8 if atol is None else atol, np.float64)
     except ValueError as error:
         raise table.fail("rtol", str(error)) from None
     dt0 = table.number("dt0", None) if fixed or table.has("dt0") else None
@@ -663,8 +666,8 @@ class SceneFile:
     - `[time]` `t1` (required), `t0` (0), `saves` (saved times, evenly spaced; 101).
     - `[solver]` `method` (`RKMK87` default, `RKMK54`, `RKMK4`, `LieEuler`,
       `VariationalMidpoint`, `Tsit5`, `Dopri5`, `Dopri8`, `Kvaerno5`), `rtol` (between 0
-      and 1), `atol` (≥ 0), `dt0` (positive; required by the fixed-step methods),
-      `max_steps` (a whole number ≥ 1).
+      and 1) and `atol` (≥ 0), by default `simulate`'s; `dt0` (positive; required by the
+      fixed-step methods), `max_steps` (a whole number ≥ 1).
     - `[output]` `trajectory` (a `.npz` file name, written into the run's output folder;
       default the scene's name), `plots` (true), `animation` (false), `frames` (≥ 2; 60).
 
@@ -729,7 +732,7 @@ class SceneFile:
             state = _contact_state(initial, contact)
 
         solver, options = read_solver(
-            root.table("solver", {}), SOLVERS, method="RKMK87", tolerance=1e-8, max_steps=16384
+            root.table("solver", {}), SOLVERS, method="RKMK87", tolerance=None, max_steps=16384
         )
         out = root.table("output", {})
         output = read_output(out, path.stem) | {
@@ -758,5 +761,25 @@ class SceneFile:
             saveat=diffrax.SaveAt(ts=ts),
             progress=progress,
             throw=throw,
-            **self.options,
+            **tolerances_in_precision(self.options, self.state.g.dtype, self.path),
         )
+
+
+def tolerances_in_precision(options: dict, dtype, path) -> dict:
+    """A file's solver `options` with `rtol` and `atol` raised, warning, to `dtype`'s floor
+    (`simulate`'s default there) where they are below it: a file written for float64 (rtol
+    1e-10) then runs in float32 at the accuracy float32 allows, rather than being refused."""
+    floor = default_tolerance(dtype)
+    raised = {
+        name: floor
+        for name in ("rtol", "atol")
+        if options[name] is not None and options[name] < floor
+    }
+    if raised:
+        given = ", ".join(f"solver.{name} = {options[name]:g}" for name in raised)
+        warn_in_callers_code(
+            f"{path}: {given} cannot be met in {jnp.dtype(dtype).name}; solving at {floor:.1e}. "
+            "Call `bundledyn.enable_x64()` before loading the file for the file's own "
+            "tolerances (the command line does)."
+        )
+    return options | raised

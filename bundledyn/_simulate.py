@@ -13,7 +13,7 @@ import jax.tree_util as jtu
 import numpy as np
 
 from . import lie
-from ._precision import check_tolerances, checked_tolerances
+from ._precision import check_tolerances, checked_tolerances, default_tolerance
 from ._scene import Scene
 from ._solver._adjoint import StoredStepsAdjoint
 from ._solver._base import AbstractLieGroupSolver
@@ -121,6 +121,9 @@ def _numbers_as_data(function):
         bound = signature.bind(*args, **kwargs)
         bound.apply_defaults()
         given = bound.arguments
+        for name in ("rtol", "atol"):
+            if given[name] is None:
+                given[name] = default_tolerance(given["state0"].g.dtype)
         if given["stepsize_controller"] is None and _adaptive(given["solver"]):
             # Here, not in the compiled solve, where the numbers arrive traced.
             check_tolerances(given["rtol"], given["atol"], given["state0"].g.dtype)
@@ -163,8 +166,8 @@ def simulate(
     *,
     t0: float | jax.Array = 0.0,
     solver=None,
-    rtol: float = 1e-8,
-    atol: float = 1e-8,
+    rtol: float | None = None,
+    atol: float | None = None,
     dt0=None,
     stepsize_controller: diffrax.AbstractStepSizeController | None = None,
     saveat: diffrax.SaveAt | None = None,
@@ -190,8 +193,9 @@ def simulate(
       4×4 embedding: there its rotation drifts off SO(3) by the solver's error, so the saved
       poses are projected back (`project_to_se3`) and the drift before projection is
       reported as `stats["embedding_drift"]`.
-    - `rtol`, `atol`: tolerances of the default step-size controller (adaptive solvers), a
-      `diffrax.PIDController` with Gustafsson's PI coefficients (`pcoeff=0.4`,
+    - `rtol`, `atol`: tolerances of the default step-size controller (adaptive solvers),
+      by default 1e-8, or 1000 rounding errors of the state's dtype where that is larger
+      (1.2e-4 in float32); a `diffrax.PIDController` with Gustafsson's PI coefficients (`pcoeff=0.4`,
       `icoeff=0.3`); unused when `stepsize_controller` is given. Negative tolerances, and
       tolerances below the working precision's rounding error, raise `ValueError` (no step
       size meets them), or, traced inside `jax.jit`, stop the solve with equinox's runtime
@@ -240,7 +244,12 @@ def simulate(
         # Gustafsson's PI controller (Hairer & Wanner, Solving ODEs II, §IV.2; diffrax's
         # docstring lists it): diffrax's default I controller rejects far more of RKMK87's
         # long steps.
-        controller = diffrax.PIDController(rtol=rtol, atol=atol, pcoeff=0.4, icoeff=0.3)
+        controller = diffrax.PIDController(
+            rtol=default_tolerance(y0[0].dtype) if rtol is None else rtol,
+            atol=default_tolerance(y0[0].dtype) if atol is None else atol,
+            pcoeff=0.4,
+            icoeff=0.3,
+        )
     else:
         controller = diffrax.ConstantStepSize()
     adaptive = isinstance(controller, diffrax.AbstractAdaptiveStepSizeController)

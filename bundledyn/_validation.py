@@ -8,6 +8,15 @@ solids and the tolerances' checks).
 import numpy as np
 
 
+def rounding_tolerance(value, floor: float) -> float:
+    """`floor`, or 64 rounding errors of `value`'s dtype where that is larger: a check whose
+    tolerance was set for float64's arithmetic, widened so float32's passes it too (float32
+    builds a rotation orthogonal only to about 1e-7)."""
+    dtype = np.asarray(value).dtype
+    eps = float(np.finfo(dtype).eps) if np.issubdtype(dtype, np.floating) else 0.0
+    return max(floor, 64.0 * eps)
+
+
 def concrete(x):
     """The value of `x` as a NumPy array, or `None` when `x` is a tracer (inside jit/vmap/grad).
 

@@ -44,11 +44,15 @@ from .._validation import check_shape
 from ._base import AbstractFreeMotionMode, SceneParts
 from ._floating import checked_shape
 
-__all__ = ["CONSISTENCY", "AbstractPlaneContactMode", "check_contact"]
+__all__ = ["AbstractPlaneContactMode", "check_contact", "consistency"]
 
-# How far a given state may be from the contact constraints, relative to its scale, before
-# `encode` refuses it: far above rounding, far below any physically different state.
-CONSISTENCY = 1e-8
+
+def consistency(dtype) -> float:
+    """How far a given state may be from the contact constraints, relative to its scale,
+    before `encode` refuses it: far above rounding (1e-8, or 1000 rounding errors of `dtype`
+    where that is larger: float32 builds a state consistent to about 1e-6), far below any
+    physically different state."""
+    return max(1e-8, 1000.0 * float(jnp.finfo(dtype).eps))
 
 
 def check_contact(owner: str, surface, offset, equations) -> None:
@@ -165,7 +169,7 @@ class AbstractPlaneContactMode(AbstractFreeMotionMode):
         off = jnp.linalg.norm(xi - state.xi) + jnp.linalg.norm(g[:3, 3] - state.g[:3, 3])
         g0 = eqx.error_if(
             state.g,
-            off > CONSISTENCY * scale,
+            off > consistency(off.dtype) * scale,
             "the state does not keep the contact: its pose must touch the plane and its "
             "contact point move only along the sliding directions; build it with the mode's "
             "`state(g, omega, sliding)`.",

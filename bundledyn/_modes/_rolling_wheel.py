@@ -46,7 +46,7 @@ from .._systems._multibody import AbstractMultibody
 from .._validation import check_shape
 from ._base import AbstractFreeMotionMode, SceneParts
 from ._floating import body_twist, checked_shape
-from ._plane_contact import CONSISTENCY
+from ._plane_contact import consistency
 
 __all__ = ["RollingWheelMode", "Wheel"]
 
@@ -287,7 +287,7 @@ class RollingWheelMode(AbstractFreeMotionMode):
         )
         g0 = eqx.error_if(
             state.g,
-            off > CONSISTENCY * scale,
+            off > consistency(off.dtype) * scale,
             "the state does not keep the wheels rolling: their contact points must lie on "
             "the plane and be at rest; build it with the mode's `state(system, g, q, e)`.",
         )

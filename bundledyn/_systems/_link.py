@@ -5,7 +5,7 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Float
 
-from .._validation import check_shape, concrete
+from .._validation import check_shape, concrete, rounding_tolerance
 from ._joints import AbstractJoint
 from ._rigid_body import RigidBody
 
@@ -47,7 +47,7 @@ class Link(eqx.Module):
         if T is not None:
             R = T[:3, :3]
             if (
-                not np.allclose(R.T @ R, np.eye(3), atol=1e-8)
+                not np.allclose(R.T @ R, np.eye(3), atol=rounding_tolerance(T, 1e-8))
                 or np.linalg.det(R) <= 0
                 or not np.allclose(T[3], [0, 0, 0, 1], atol=1e-12)
             ):

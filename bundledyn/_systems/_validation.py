@@ -9,7 +9,7 @@ import equinox as eqx
 import jax.numpy as jnp
 import numpy as np
 
-from .._validation import concrete
+from .._validation import concrete, rounding_tolerance
 
 
 def check_mass(name: str, mass) -> None:
@@ -30,14 +30,15 @@ def check_inertia(name: str, inertia) -> None:
     if J is None:
         return
     scale = max(float(np.max(np.abs(J))), 1e-300)
-    if not np.allclose(J, J.T, rtol=0.0, atol=1e-9 * scale):
+    tolerance = rounding_tolerance(J, 1e-9)
+    if not np.allclose(J, J.T, rtol=0.0, atol=tolerance * scale):
         raise ValueError(f"`{name}` must be symmetric, got\n{J}.")
     moments = np.linalg.eigvalsh(0.5 * (J + J.T))
     if not moments[0] > 0:
         raise ValueError(
             f"`{name}` must be positive definite; its principal moments are {moments}."
         )
-    if moments[0] + moments[1] < moments[2] * (1 - 1e-9):
+    if moments[0] + moments[1] < moments[2] * (1 - tolerance):
         raise ValueError(
             f"`{name}` breaks the triangle inequality of principal moments "
             f"({moments[0]:g} + {moments[1]:g} < {moments[2]:g}): no mass distribution has it."
@@ -50,7 +51,7 @@ def check_spd(name: str, matrix) -> None:
     if S is None:
         return
     scale = max(float(np.max(np.abs(S))), 1e-300)
-    if not np.allclose(S, S.T, rtol=0.0, atol=1e-9 * scale) or not (
+    if not np.allclose(S, S.T, rtol=0.0, atol=rounding_tolerance(S, 1e-9) * scale) or not (
         np.linalg.eigvalsh(0.5 * (S + S.T))[0] > 0
     ):
         raise ValueError(f"`{name}` must be symmetric positive definite, got\n{S}.")
