@@ -603,6 +603,17 @@ def test_root_without_free_joint():
     qpos2, qvel2 = to_mujoco(system, g, q, xi, qdot, qpos0=model.qpos0, free_root=False)
     np.testing.assert_allclose(same_quaternions(model, qpos, qpos2), qpos, atol=1e-13)
     np.testing.assert_allclose(qvel2, qvel, atol=1e-13)
+    # The flag as NumPy gives it (`np.bool_`, e.g. read from a file of settings).
+    state = bundledyn.state_from_mujoco(
+        system, qpos, qvel, qpos0=model.qpos0, free_root=np.bool_(False), root_pose=T_mj[1]
+    )
+    np.testing.assert_array_equal(state.g, g)
+    qpos3, _ = bundledyn.state_to_mujoco(
+        system, state, qpos0=model.qpos0, free_root=np.array(False)
+    )
+    np.testing.assert_array_equal(qpos3, qpos2)
+    with pytest.raises(TypeError, match="give True or False"):
+        jax.jit(lambda flag: bundledyn.state_to_mujoco(system, state, free_root=flag)[0])(False)
 
 
 def test_converter_shape_errors(tree):

@@ -6,10 +6,13 @@ that a call outside `jit` (converting recorded states one by one) runs one progr
 one per operation.
 """
 
+import functools
+
 import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
+from jax.core import Tracer
 
 from .. import lie
 from .._state import State
@@ -17,6 +20,24 @@ from ._constrained import ConstrainedSystem
 from ._multibody import AbstractMultibody
 
 __all__ = ["state_from_mujoco", "state_to_mujoco"]
+
+
+def _compiled_with_a_layout_flag(function):
+    """`function` compiled whole (`equinox.filter_jit`), its `free_root` read as a Python
+    bool first: `filter_jit` traces a NumPy bool (an array to it), and a traced flag cannot
+    choose the layout."""
+    compiled = eqx.filter_jit(function)
+
+    @functools.wraps(function)
+    def call(*args, free_root=True, **kwargs):
+        if isinstance(free_root, Tracer) or np.ndim(free_root) != 0:
+            raise TypeError(
+                "`free_root` chooses the layout of qpos and qvel: give True or False (a "
+                f"Python or NumPy bool), not {type(free_root).__name__} {free_root!r}."
+            )
+        return compiled(*args, free_root=bool(free_root), **kwargs)
+
+    return call
 
 
 def _layout(system: AbstractMultibody, free_root):
@@ -69,7 +90,7 @@ def _screw_offsets(qpos0, lay, free_root, dtype):
     return qpos0[lay["screw_pos"]]
 
 
-@eqx.filter_jit
+@_compiled_with_a_layout_flag
 def state_from_mujoco(
     system: AbstractMultibody | ConstrainedSystem,
     qpos,
@@ -150,7 +171,7 @@ def state_from_mujoco(
     return State(g, q, xi, qdot)
 
 
-@eqx.filter_jit
+@_compiled_with_a_layout_flag
 def state_to_mujoco(
     system: AbstractMultibody | ConstrainedSystem, state: State, *, qpos0=None, free_root=True
 ):
