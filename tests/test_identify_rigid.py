@@ -90,6 +90,7 @@ def test_new_noise_levels_masses_and_continuation_stages_reuse_the_compiled_fit(
     assert compiled() == after_first
 
 
+@pytest.mark.slow  # an identification fit of its own (the slow part's kind)
 def test_a_spin_about_a_principal_axis_leaves_the_other_moments_undetermined():
     """Spinning about its major axis (no nutation), a body shows that axis only: the
     other two moments and the axes in their plane are reported undetermined, not fitted
@@ -106,6 +107,7 @@ def test_a_spin_about_a_principal_axis_leaves_the_other_moments_undetermined():
 # The one fit here whose running outweighs its compiling (50 trial steps of single shooting):
 # measured one core each, 28 s optimised against 40 s; the others 15-32 s unoptimised
 # against 25-41 s.
+@pytest.mark.slow  # two fits, 50 trial steps of single shooting
 @pytest.mark.usefixtures("optimized_test_compilation")
 def test_multiple_shooting_converges_where_single_shooting_from_the_same_start_does_not():
     """The documented case: 10 s of a body spun about its intermediate axis, which flips
