@@ -24,13 +24,22 @@ def _solve(scene_file, *, progress=False):
     """Simulate a scene file: `(trajectory, seconds)`; `_Failure` if the solver stopped early."""
     import diffrax
 
+    from ._stiffness import out_of_steps_advice
+
     start = time.perf_counter()
     traj = scene_file.simulate(progress=progress, throw=False)
     elapsed = time.perf_counter() - start
     if not bool(traj.result == diffrax.RESULTS.successful):
-        raise _Failure(
-            f"{scene_file.path}: the solver stopped early: {diffrax.RESULTS[traj.result]}"
-        )
+        message = diffrax.RESULTS[traj.result]
+        if bool(traj.result == diffrax.RESULTS.max_steps_reached):
+            message += " " + out_of_steps_advice(
+                scene_file.scene,
+                scene_file.state,
+                scene_file.t0,
+                scene_file.t1,
+                scene_file.options["max_steps"],
+            )
+        raise _Failure(f"{scene_file.path}: the solver stopped early: {message}")
     return traj, elapsed
 
 

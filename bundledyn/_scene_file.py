@@ -42,7 +42,7 @@ from ._nonholonomic import (
     TorusContact,
 )
 from ._paths import models
-from ._precision import check_tolerances, default_tolerance, warn_in_callers_code
+from ._precision import check_tolerances, warn_in_callers_code
 from ._scene import Scene, model_effects, system_of_parts
 from ._simulate import simulate
 from ._solids import Box, Capsule, Ellipsoid
@@ -766,10 +766,11 @@ class SceneFile:
 
 
 def tolerances_in_precision(options: dict, dtype, path) -> dict:
-    """A file's solver `options` with `rtol` and `atol` raised, warning, to `dtype`'s floor
-    (`simulate`'s default there) where they are below it: a file written for float64 (rtol
-    1e-10) then runs in float32 at the accuracy float32 allows, rather than being refused."""
-    floor = default_tolerance(dtype)
+    """A file's solver `options` with `rtol` and `atol` raised, warning, to 100 rounding
+    errors of `dtype` where they are below it (where `simulate` would refuse or warn): a
+    file written for float64 (rtol 1e-10) then runs in float32 at the accuracy float32
+    allows, rather than being refused."""
+    floor = 100.0 * float(jnp.finfo(dtype).eps)
     raised = {
         name: floor
         for name in ("rtol", "atol")

@@ -20,6 +20,7 @@ from ._solver._base import AbstractLieGroupSolver
 from ._solver._rkmk import RKMK87, AbstractRKMK
 from ._solver._starting_step import starting_step
 from ._state import State
+from ._stiffness import out_of_steps_advice
 from ._term import SceneTerm
 from ._trajectory import Trajectory
 from ._validation import concrete
@@ -132,9 +133,21 @@ def _numbers_as_data(function):
             if value is not None and not np.all(np.isfinite(value)):
                 raise ValueError(f"simulate: `{name}` must be finite, got {given[name]}.")
         given.update({name: _traced(given[name]) for name in _NUMBERS})
-        return solve(*bound.args, **bound.kwargs)
+        try:
+            return solve(*bound.args, **bound.kwargs)
+        except eqx.EquinoxRuntimeError as error:
+            if _OUT_OF_STEPS not in str(error):
+                raise
+            advice = out_of_steps_advice(
+                given["scene"], given["state0"], given["t0"], given["t1"], given["max_steps"]
+            )
+            raise eqx.EquinoxRuntimeError(f"{_OUT_OF_STEPS} {advice}") from error
 
     return simulate
+
+
+# diffrax's message when a solve runs out of `max_steps`.
+_OUT_OF_STEPS = diffrax.RESULTS[diffrax.RESULTS.max_steps_reached]
 
 
 def _adaptive(solver) -> bool:

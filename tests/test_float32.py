@@ -117,4 +117,4 @@ def test_every_shipped_scene_file_runs_in_float32():
     assert set(ran) == set(SCENES)
     for name, (dtypes, finite, caught) in ran.items():
         assert dtypes == ["float32"] and finite, name
-        assert any("cannot be met in float32; solving at 1.2e-04" in w for w in caught), name
+        assert any("cannot be met in float32; solving at 1.2e-05" in w for w in caught), name

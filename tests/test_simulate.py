@@ -1,5 +1,7 @@
 """Simulation (issue: dynamics): closed forms, conservation laws, holonomy, gradients, errors."""
 
+import re
+
 import diffrax
 import equinox as eqx
 import jax
@@ -472,3 +474,22 @@ def test_a_horizon_or_tolerances_no_solve_can_meet_are_refused_inside_jit_too():
     ]:
         with pytest.raises(eqx.EquinoxRuntimeError, match=message):
             jax.block_until_ready(final_pose(*jnp.array([t1, rtol, atol])))
+
+
+def test_running_out_of_steps_names_the_stiffest_mode_and_what_to_do():
+    """A floating chain on stiff joint springs: the message gives the fastest mode's rate,
+    which is the small oscillations' $\\omega$ at zero momentum, $\\omega^2$ the largest
+    eigenvalue of $J^{-1}K$ with $J$ the reduced shape metric."""
+    system = chain(3)
+    d, k = system.shape_dim, 1e6
+    scene = bd.Scene(system, (bd.ShapeSpring(k),))
+    state = bd.State(jnp.eye(4), jnp.full(d, 1e-6), jnp.zeros(6), jnp.zeros(d))
+    metric = bd.shape_metric(system, jnp.zeros(d))
+    omega = float(jnp.sqrt(jnp.max(jnp.linalg.eigvalsh(k * jnp.linalg.inv(metric)))))
+    with pytest.raises(eqx.EquinoxRuntimeError, match="maximum number of solver steps") as info:
+        bd.simulate(scene, state, 1.0, max_steps=50)
+    message = str(info.value)
+    reported = float(re.search(r"\|λ\| = ([0-9.e+]+)/s", message).group(1))
+    assert abs(reported - omega) <= 1e-3 * omega, (reported, omega)
+    assert f"period {2 * np.pi / omega:.3g} s" in message
+    assert "VariationalMidpoint" in message and "max_steps = 50" in message
