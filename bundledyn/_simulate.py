@@ -138,9 +138,12 @@ def _numbers_as_data(function):
         except eqx.EquinoxRuntimeError as error:
             if _OUT_OF_STEPS not in str(error):
                 raise
-            advice = out_of_steps_advice(
-                given["scene"], given["state0"], given["t0"], given["t1"], given["max_steps"]
-            )
+            try:
+                advice = out_of_steps_advice(
+                    given["scene"], given["state0"], given["t0"], given["t1"], given["max_steps"]
+                )
+            except Exception:  # the advice is a diagnosis: failing, it must not hide the error
+                raise error from None
             raise eqx.EquinoxRuntimeError(f"{_OUT_OF_STEPS} {advice}") from error
 
     return simulate
@@ -208,8 +211,8 @@ def simulate(
       reported as `stats["embedding_drift"]`.
     - `rtol`, `atol`: tolerances of the default step-size controller (adaptive solvers),
       by default 1e-8, or 1000 rounding errors of the state's dtype where that is larger
-      (1.2e-4 in float32); a `diffrax.PIDController` with Gustafsson's PI coefficients (`pcoeff=0.4`,
-      `icoeff=0.3`); unused when `stepsize_controller` is given. Negative tolerances, and
+      (1.2e-4 in float32); a `diffrax.PIDController` with Gustafsson's PI coefficients
+      (`pcoeff=0.4`, `icoeff=0.3`); unused when `stepsize_controller` is given. Negative tolerances, and
       tolerances below the working precision's rounding error, raise `ValueError` (no step
       size meets them), or, traced inside `jax.jit`, stop the solve with equinox's runtime
       error; ones within 100 times it warn. A `t0` or `t1` that is not finite is refused
@@ -236,7 +239,8 @@ def simulate(
       respect to `t0`, `t1`, `saveat`'s times or the tolerances need
       `diffrax.RecursiveCheckpointAdjoint()` (the default refuses them, saying so).
     - `event`: an optional `diffrax.Event` to stop at.
-    - `max_steps`: step budget; running out raises (or, with `throw=False`, sets `result`).
+    - `max_steps`: step budget; running out raises (or, with `throw=False`, sets `result`),
+      naming the stiffest mode at `state0` and the steps an explicit solver needs for it.
     - `progress`: show diffrax's text progress meter.
 
     **Returns:**
