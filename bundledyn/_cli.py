@@ -32,13 +32,14 @@ def _solve(scene_file, *, progress=False):
     if not bool(traj.result == diffrax.RESULTS.successful):
         message = diffrax.RESULTS[traj.result]
         if bool(traj.result == diffrax.RESULTS.max_steps_reached):
-            message += " " + out_of_steps_advice(
+            advice = out_of_steps_advice(
                 scene_file.scene,
                 scene_file.state,
                 scene_file.t0,
                 scene_file.t1,
                 scene_file.options["max_steps"],
             )
+            message = f"{message} {advice}".rstrip()
         raise _Failure(f"{scene_file.path}: the solver stopped early: {message}")
     return traj, elapsed
 

@@ -59,9 +59,13 @@ def out_of_steps_advice(scene: Scene, state: State, t0, t1, max_steps) -> str:
 
     **Returns:**
 
-    A paragraph for the error message.
+    A paragraph for the error message; empty where the field cannot be linearized at the
+    state, since the diagnosis must not replace the error it explains.
     """
-    rate = stiffest_rate(scene, state, t0)
+    try:
+        rate = stiffest_rate(scene, state, t0)
+    except Exception:  # noqa: BLE001 (any failure of the diagnosis leaves diffrax's message)
+        return ""
     if rate == 0.0:
         return "The field has no oscillation or decay at the initial state to blame."
     needed = math.ceil(abs(float(t1) - float(t0)) * rate / _STABLE_STEP)
