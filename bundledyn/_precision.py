@@ -95,9 +95,26 @@ def check_tolerances(rtol: ArrayLike, atol: ArrayLike, dtype) -> None:
         )
 
 
-def checked_tolerances(rtol: ArrayLike, atol: ArrayLike, dtype) -> tuple[jax.Array, jax.Array]:
+def tolerance_refusals(dtype) -> tuple[str, str]:
+    """The messages of `tolerance_refusal`'s codes 1 and 2, for `equinox.branched_error_if`.
+
+    **Arguments:**
+
+    - `dtype`: the floating dtype the solve runs in.
+    """
+    eps = float(jnp.finfo(dtype).eps)
+    return (
+        "simulate: tolerances must be non-negative.",
+        f"simulate: rtol and atol are both below {jnp.dtype(dtype).name}'s rounding error "
+        f"{eps:.1e}: no step size can meet them; {_advice(dtype)}.",
+    )
+
+
+def tolerance_refusal(rtol: ArrayLike, atol: ArrayLike, dtype) -> jax.Array:
     """`check_tolerances`'s refusals for traced tolerances (inside `jax.jit` or `jax.vmap`),
-    where no Python value is there to check: the solve stops with equinox's runtime error.
+    where no Python value is there to check, as a code for `equinox.branched_error_if`: 0
+    for tolerances a step size can meet, 1 for a negative one, 2 for both below the rounding
+    error (`tolerance_refusals` has the messages).
 
     **Arguments:**
 
@@ -106,20 +123,13 @@ def checked_tolerances(rtol: ArrayLike, atol: ArrayLike, dtype) -> tuple[jax.Arr
 
     **Returns:**
 
-    `(rtol, atol)` as arrays, checked when the program runs.
+    The code, an integer array of shape `()`.
     """
     r, a = jnp.asarray(rtol), jnp.asarray(atol)
     eps = float(jnp.finfo(dtype).eps)
-    r = equinox.error_if(
-        r, jnp.any(r < 0) | jnp.any(a < 0), "simulate: tolerances must be non-negative."
-    )
-    r = equinox.error_if(
-        r,
-        jnp.all(r < eps) & jnp.all(a < eps),
-        f"simulate: rtol and atol are both below {jnp.dtype(dtype).name}'s rounding error "
-        f"{eps:.1e}: no step size can meet them; {_advice(dtype)}.",
-    )
-    return jnp.asarray(r), a
+    negative = jnp.any(r < 0) | jnp.any(a < 0)
+    below = jnp.all(r < eps) & jnp.all(a < eps)
+    return jnp.where(negative, 1, jnp.where(below, 2, 0))
 
 
 def default_tolerance(dtype) -> float:

@@ -3,7 +3,6 @@
 import dataclasses
 import functools
 import inspect
-from typing import TypeVar
 
 import diffrax
 import equinox as eqx
@@ -13,7 +12,12 @@ import jax.tree_util as jtu
 import numpy as np
 
 from . import lie
-from ._precision import check_tolerances, checked_tolerances, default_tolerance
+from ._precision import (
+    check_tolerances,
+    default_tolerance,
+    tolerance_refusal,
+    tolerance_refusals,
+)
 from ._scene import Scene
 from ._solver._adjoint import StoredStepsAdjoint
 from ._solver._base import AbstractLieGroupSolver
@@ -90,13 +94,17 @@ def _interpolates(saveat: diffrax.SaveAt, event) -> bool:
     return saveat.dense or event is not None or any(s.ts is not None for s in subs)
 
 
-_Controller = TypeVar("_Controller", bound=diffrax.AbstractAdaptiveStepSizeController)
-
-
-def _with_checked_tolerances(controller: _Controller, dtype) -> _Controller:
-    """`controller` with its tolerances checked when the solve runs (`checked_tolerances`)."""
-    checked = checked_tolerances(controller.rtol, controller.atol, dtype)
-    return eqx.tree_at(lambda c: (c.rtol, c.atol), controller, checked)
+def _checked_when_run(t0, t1, controller, dtype):
+    """`t1`, with the checks a traced solve needs made when it runs (inside `jax.jit` the
+    numbers cannot be checked in Python): finite times and, for an adaptive `controller`,
+    tolerances a step size can meet. On `t1` alone, so the solve's arithmetic is unchanged."""
+    refusal = jnp.where(jnp.isfinite(t0) & jnp.isfinite(t1), 0, 1)
+    messages = ("simulate: `t0` and `t1` must be finite.",)
+    if controller is not None:
+        tolerance = tolerance_refusal(controller.rtol, controller.atol, dtype)
+        refusal = jnp.where(refusal == 0, jnp.where(tolerance > 0, tolerance + 1, 0), refusal)
+        messages += tolerance_refusals(dtype)
+    return eqx.branched_error_if(t1, refusal > 0, jnp.maximum(refusal - 1, 0), messages)
 
 
 def default_adjoint(solver) -> diffrax.AbstractAdjoint:
@@ -269,10 +277,7 @@ def simulate(
     adaptive = isinstance(controller, diffrax.AbstractAdaptiveStepSizeController)
     if adaptive:
         check_tolerances(controller.rtol, controller.atol, y0[0].dtype)
-    # Traced times (inside `jax.jit`) are checked when the solve runs.
-    t1 = eqx.error_if(
-        t1, ~(jnp.isfinite(t0) & jnp.isfinite(t1)), "simulate: `t0` and `t1` must be finite."
-    )
+    t1 = _checked_when_run(t0, t1, controller if adaptive else None, y0[0].dtype)
     if dt0 is None and adaptive and isinstance(solver, diffrax.AbstractAdaptiveSolver):
         h = starting_step(
             term,
@@ -297,9 +302,7 @@ def simulate(
         dt0,
         y0,
         saveat=saveat,
-        stepsize_controller=(
-            _with_checked_tolerances(controller, y0[0].dtype) if adaptive else controller
-        ),
+        stepsize_controller=controller,
         adjoint=default_adjoint(solver) if adjoint is None else adjoint,
         event=event,
         max_steps=max_steps,
