@@ -68,7 +68,9 @@ def test_simulate_is_documented_as_a_function_with_its_signature(site):
         re.sub(r"<[^>]+>", "", (site / "api" / "simulate" / "index.html").read_text())
     )
     assert "functools.wraps" not in page and "_numbers_as_data" not in page
-    assert re.search(r"simulate\(\s*scene.*state0.*t1.*rtol.*=.*None.*max_steps.*=.*16384", page, flags=re.S)
+    assert re.search(
+        r"simulate\(\s*scene.*state0.*t1.*rtol.*=.*None.*max_steps.*=.*16384", page, flags=re.S
+    )
 
 
 def test_the_reference_check_sees_a_missing_docstring(site, tmp_path):
