@@ -12,7 +12,7 @@ import jax.numpy as jnp
 import numpy as np
 from jax.typing import ArrayLike
 
-from ._validation import concrete
+from ._validation import concrete, precision_floor
 
 # Frames in these folders are the library's, not the user's: warnings skip past them.
 LIBRARY_FOLDERS = tuple(
@@ -140,7 +140,7 @@ def default_tolerance(dtype) -> float:
 
     - `dtype`: the floating dtype the solve runs in.
     """
-    return max(1e-8, 1000.0 * float(jnp.finfo(dtype).eps))
+    return precision_floor(dtype, 1e-8, 1000.0)
 
 
 def default_residual_tolerance(dtype) -> float:

@@ -57,6 +57,7 @@ from ._systems._mujoco_import import parts_from_mjcf, parts_from_urdf
 from ._systems._multibody import Multibody
 from ._systems._rigid_body import RigidBody
 from ._trajectory import Trajectory
+from ._validation import precision_floor
 
 SOLVERS = {
     "RKMK54": (RKMK54, False),
@@ -770,7 +771,7 @@ def tolerances_in_precision(options: dict, dtype, path) -> dict:
     errors of `dtype` where they are below it (where `simulate` would refuse or warn): a
     file written for float64 (rtol 1e-10) then runs in float32 at the accuracy float32
     allows, rather than being refused."""
-    floor = 100.0 * float(jnp.finfo(dtype).eps)
+    floor = precision_floor(dtype, 0.0, 100.0)
     raised = {
         name: floor
         for name in ("rtol", "atol")

@@ -8,13 +8,20 @@ solids and the tolerances' checks).
 import numpy as np
 
 
-def rounding_tolerance(value, floor: float) -> float:
-    """`floor`, or 64 rounding errors of `value`'s dtype where that is larger: a check whose
-    tolerance was set for float64's arithmetic, widened so float32's passes it too (float32
-    builds a rotation orthogonal only to about 1e-7)."""
-    dtype = np.asarray(value).dtype
+def precision_floor(dtype, floor: float, rounding_errors: float) -> float:
+    """`floor`, or `rounding_errors` rounding errors of `dtype` where that is larger (no
+    rounding error for a dtype that is not floating): a tolerance set for float64's
+    arithmetic, widened where a narrower precision cannot meet it."""
+    dtype = np.dtype(dtype)
     eps = float(np.finfo(dtype).eps) if np.issubdtype(dtype, np.floating) else 0.0
-    return max(floor, 64.0 * eps)
+    return max(floor, rounding_errors * eps)
+
+
+def rounding_tolerance(value, floor: float) -> float:
+    """`floor`, or 64 rounding errors of `value`'s dtype where that is larger: a construction
+    check's tolerance, widened so float32's arithmetic passes it too (float32 builds a
+    rotation orthogonal only to about 1e-7)."""
+    return precision_floor(np.asarray(value).dtype, floor, 64.0)
 
 
 def concrete(x):

@@ -40,7 +40,7 @@ from .._nonholonomic._body_motion import BodyMotion
 from .._nonholonomic._contact import AbstractContactSurface
 from .._nonholonomic._equations import AbstractNonholonomicEquations
 from .._state import State
-from .._validation import check_shape
+from .._validation import check_shape, precision_floor
 from ._base import AbstractFreeMotionMode, SceneParts
 from ._floating import checked_shape
 
@@ -52,7 +52,7 @@ def consistency(dtype) -> float:
     before `encode` refuses it: far above rounding (1e-8, or 1000 rounding errors of `dtype`
     where that is larger: float32 builds a state consistent to about 1e-6), far below any
     physically different state."""
-    return max(1e-8, 1000.0 * float(jnp.finfo(dtype).eps))
+    return precision_floor(dtype, 1e-8, 1000.0)
 
 
 def check_contact(owner: str, surface, offset, equations) -> None:
