@@ -5,7 +5,8 @@ $(\xi, \dot q)$: a wrench $F_b$ on the section frame (section axes, angular firs
 shape force $Q_H$. Conservative effects (`AbstractPotential`) are given by their potential
 $\Pi(t, g, q)$, which the energy adds; their forces are
 $F_b = -\partial_\eta \Pi(g\exp\hat\eta, q)|_0$ (the seed's $\mathcal L\Pi$ with a sign)
-and $Q_H = -\partial_q\Pi$, by autodiff.
+and $Q_H = -\partial_q\Pi$, by autodiff, except where an effect writes them out (`Gravity`:
+differentiating its potential would differentiate the metric).
 Only the effects a scene names enter its compiled vector field.
 Their `potential` and `generalized_force` are compiled (`equinox.filter_jit`): called on
 concrete values, each runs as one program, not primitive by primitive.
@@ -123,15 +124,44 @@ class Gravity(AbstractPotential):
             None if centre_offset is None else jnp.asarray(centre_offset, dtype=float)
         )
 
+    def _weight(self, m):
+        r"""$m_g\,\gamma$ over $m$: the weight per unit of inertial mass."""
+        m_g = m if self.gravitational_mass is None else self.gravitational_mass
+        return m_g / m * self.g * self.direction
+
+    def _centre(self, c):
+        r"""The centre of gravity $c + \delta$ in the section frame."""
+        return c if self.centre_offset is None else c + self.centre_offset
+
     @eqx.filter_jit
     def potential(self, system, t, g, q):
         m, c, _ = mass_and_centre(system.metric(q)[:6, :6])
-        if self.gravitational_mass is not None:
-            m = self.gravitational_mass
-        if self.centre_offset is not None:
-            c = c + self.centre_offset
-        gamma = self.g * self.direction
-        return -m * gamma @ (g[:3, 3] + g[:3, :3] @ c)
+        return -m * self._weight(m) @ (g[:3, 3] + g[:3, :3] @ self._centre(c))
+
+    @eqx.filter_jit
+    def generalized_force(self, system, kin):
+        r"""$F_b = (m_g (c + \delta)\times\gamma_b,\; m_g\gamma_b)$ and $Q_H = \tfrac{m_g}{m}
+        B_v^T\gamma_b$, with $\gamma_b = R^T\gamma$ and $B_v$ the linear rows of the metric's
+        coupling block $B = I_r A$ (seed 004, (3.1)).
+
+        For a system that satisfies Theorem 2.2, $B_v = m\,\partial c/\partial q$ (Theorem
+        2.3, property 2: the centre of mass does not move at zero momentum), so these are
+        $-\partial\Pi$ without differentiating the metric. They are read off the metric jet
+        the field computes, so inside the field XLA computes that metric once.
+
+        **Arguments:**
+
+        - `system`: the system; `kin`: the `Kinematics`.
+
+        **Returns:**
+
+        `(F_b, Q_H)`, shapes `(6,)` and `(d,)`.
+        """
+        rows = system.metric_jet(kin.q).metric[:6]
+        m, c, _ = mass_and_centre(rows[:, :6])
+        weight = m * (kin.g[:3, :3].T @ self._weight(m))
+        F_b = jnp.concatenate([jnp.cross(self._centre(c), weight), weight])
+        return F_b, rows[3:6, 6:].T @ weight / m
 
 
 class AbstractCentralGravity(AbstractPotential):
@@ -186,7 +216,8 @@ class GravityGradient(AbstractCentralGravity):
 
     def mass_elements(self, system, g, q):
         R, p = g[:3, :3], g[:3, 3]
-        m, c, l = mass_and_centre(system.metric(q)[:6, :6])
+        # The field's own metric jet: XLA computes the metric once for both.
+        m, c, l = mass_and_centre(system.metric_jet(q).metric[:6, :6])
         return m[None], (p + R @ c)[None], (R @ l @ R.T)[None]
 
 

@@ -1,10 +1,13 @@
 """Effects (issue: dynamics): generalized forces checked against independent computations."""
 
+import warnings
+
+import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
-from systems import chain
+from systems import affine_body, asymmetric_body, chain, rigid_generic, rotor_chain
 from traced import lowerings
 
 import bundledyn as bd
@@ -80,6 +83,80 @@ def test_gravity_does_the_work_of_its_potential():
     gamma = 9.81 * gravity.direction
     expected = -SYSTEM.mass @ (centres @ gamma)
     np.testing.assert_allclose(potential(0.0), expected, rtol=1e-12)
+
+
+def _shipped(name, **kwargs):
+    """A shipped model's system; its import warnings (unsupported elements) are not the point."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        return (
+            bd.load_system(bd.models / name)
+            if not kwargs
+            else bd.Multibody.from_mjcf(bd.models / name, **kwargs)
+        )
+
+
+GRAVITY_SYSTEMS = {
+    **{
+        name: lambda name=name: _shipped(name)
+        for name in sorted(p.name for p in bd.models.iterdir())
+    },
+    "tree4.xml sectioned at body 2": lambda: _shipped("tree4.xml", section=2),
+    "chain with rotor inertia": rotor_chain,
+    "affine body": affine_body,
+    "rigid body": asymmetric_body,
+    "rigid body as a user's kinetic energy": rigid_generic,
+}
+STANDARD = bd.Gravity(9.81, [0.3, -0.2, -1.0])
+APART = bd.Gravity(3.7, [-0.5, 0.8, 0.1], gravitational_mass=4.2, centre_offset=[0.02, -0.05, 0.1])
+GRAVITY_CASES = [(name, STANDARD) for name in GRAVITY_SYSTEMS] + [
+    (name, APART) for name in ("tree4.xml", "affine body")
+]
+
+
+@eqx.filter_jit
+def _forces_and_their_jacobians(force, gravity, system, kin):
+    """`force(gravity, system, kin)` and its Jacobians in the pose (along eta) and the shape."""
+
+    def of(eta, q):
+        return force(gravity, system, kin._replace(g=kin.g @ lie.se3_exp(eta), q=q))
+
+    eta = jnp.zeros(6, kin.q.dtype)
+    return of(eta, kin.q), jax.jacfwd(of, argnums=(0, 1))(eta, kin.q)
+
+
+@pytest.mark.parametrize(
+    ("name", "gravity"),
+    GRAVITY_CASES,
+    ids=[
+        f"{name}-{'standard' if g is STANDARD else 'masses and centres apart'}"
+        for name, g in GRAVITY_CASES
+    ],
+)
+def test_gravitys_written_out_forces_are_its_potentials_gradient_with_their_derivatives(
+    name, gravity
+):
+    """`Gravity`'s forces, read off the metric's first rows (Theorem 2.3), equal minus the
+    potential's gradient by autodiff (`AbstractPotential.generalized_force`), and so do their
+    derivatives in the pose and the shape, on every shipped model and every test system."""
+    system = GRAVITY_SYSTEMS[name]()
+    d = system.shape_dim
+    rng = np.random.default_rng(d)
+    kin = bd.Kinematics(
+        jnp.asarray(0.3),
+        lie.se3_exp(jnp.asarray(rng.normal(size=6))),
+        jnp.asarray(0.5 * rng.uniform(-1.0, 1.0, d)),
+        jnp.asarray(rng.normal(size=6)),
+        jnp.asarray(rng.normal(size=d)),
+    )
+    written_out = _forces_and_their_jacobians(type(gravity).generalized_force, gravity, system, kin)
+    by_autodiff = _forces_and_their_jacobians(
+        bd.AbstractPotential.generalized_force, gravity, system, kin
+    )
+    for x, y in zip(jax.tree.leaves(written_out), jax.tree.leaves(by_autodiff), strict=True):
+        if not y.size:  # a rigid body's shape force and its derivatives
+            continue
+        np.testing.assert_allclose(x, y, rtol=0.0, atol=1e-12 * float(jnp.max(jnp.abs(y))))
 
 
 def test_the_energy_adds_the_potentials_of_the_potential_effects_only():
