@@ -1,0 +1,3 @@
+from benchmarks.gravity.cli import main
+
+raise SystemExit(main())

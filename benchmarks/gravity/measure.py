@@ -1,0 +1,84 @@
+"""One member's field costs with and without gravity, timed in alternation with `mj_forward`."""
+
+import functools
+
+import mujoco
+import numpy as np
+
+import bundledyn as bd
+from benchmarks._timing import interleaved, loop_sampler
+from benchmarks.family.members import Member, initial_qpos_qvel, mujoco_model
+from benchmarks.speed.field import data_forward_sampler, scene_field_sampler
+from benchmarks.speed.gradient import vjp_unit
+
+CALLS = 1000
+GRAVITY = bd.Gravity(9.81)
+
+
+class PotentialGravity(bd.AbstractPotential):
+    """`gravity` with its forces by autodiff of its potential (`AbstractPotential`'s rule)."""
+
+    gravity: bd.Gravity
+
+    def potential(self, system, t, g, q):
+        return self.gravity.potential(system, t, g, q)
+
+
+def _field_vjp_sampler(scene, state):
+    """Seconds per VJP of the body field as `simulate`'s default adjoint takes it: the
+    field's values kept, its written-out reverse pass (`ReplayedSceneTerm`)."""
+    from bundledyn._term import for_replay
+
+    term = bd.SceneTerm(scene)
+    y = term.encode(0.0, state)
+
+    def field(i, y, term):  # the twist as a 4×4 matrix, so that the loop can feed it back
+        xi, xdot = term.body_vf(0.0, y, None)
+        return bd.lie.se3_hat(xi), xdot
+
+    replayed = for_replay(term, term.body_vf(0.0, y, None))
+    return loop_sampler(vjp_unit(functools.partial(field, term=replayed)), y, CALLS)
+
+
+def _agreement(scene, other, state):
+    """The largest difference between two scenes' fields at `state`, over the largest entry."""
+    import jax
+
+    a, b = (
+        bd.SceneTerm(s).vf(0.0, bd.SceneTerm(s).encode(0.0, state), None) for s in (scene, other)
+    )
+    a, b = (
+        np.concatenate([np.ravel(x) for x in jax.tree.leaves(a)]),
+        np.concatenate([np.ravel(x) for x in jax.tree.leaves(b)]),
+    )
+    return float(np.max(np.abs(a - b)) / np.max(np.abs(b)))
+
+
+def member_run(member: Member, repeats: int):
+    """`{"label", "dofs", "agreement", "times"}`: the member's per-evaluation times (seconds,
+    `summary` of each) and how closely `Gravity`'s field equals the potential-gradient one."""
+    system = bd.Multibody.from_mjcf(member.xml)
+    model = mujoco_model(member, 1e-2)
+    model.opt.gravity[:] = (0.0, 0.0, -9.81)
+    qpos, qvel = initial_qpos_qvel(model, member.rate, 0)
+    state = bd.state_from_mujoco(system, qpos, qvel, qpos0=model.qpos0)
+    data = mujoco.MjData(model)
+    data.qpos[:], data.qvel[:] = qpos, qvel
+    bare, weighed = bd.Scene(system), bd.Scene(system, [GRAVITY])
+    by_potential = bd.Scene(system, [PotentialGravity(GRAVITY)])
+    samplers = {
+        "field": scene_field_sampler(bare, state),
+        "gravity": scene_field_sampler(weighed, state),
+        "potential_gradient": scene_field_sampler(by_potential, state),
+        "field_vjp": _field_vjp_sampler(bare, state),
+        "gravity_vjp": _field_vjp_sampler(weighed, state),
+        "potential_gradient_vjp": _field_vjp_sampler(by_potential, state),
+        "mj_forward": data_forward_sampler(model, data),
+    }
+    times = {name: stats for name, (_, stats) in interleaved(samplers, repeats).items()}
+    return {
+        "label": member.name,
+        "dofs": int(model.nv),
+        "agreement": _agreement(weighed, by_potential, state),
+        "times": times,
+    }
