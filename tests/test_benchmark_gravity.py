@@ -1,5 +1,5 @@
-"""The gravity benchmark stays alive and times one field: `Gravity`'s field equals the field
-with its forces by autodiff of the potential to 1e-12 on every member (timings are never
+"""The gravity benchmark stays alive and times the same gravity both ways: `Gravity`'s forces
+equal those by autodiff of its potential to 1e-12 on every member (timings are never
 asserted)."""
 
 import json

@@ -51,8 +51,8 @@ def markdown(report):
         "",
         f"{len(members)} models (`benchmarks/gravity/members.py`), float64, CPU, each at a "
         f"tumbling start; per evaluation inside a compiled loop, {report['repeats']} rounds in "
-        "alternation, median (min–max). `Gravity`'s field equals the field with gravity's "
-        "forces by autodiff of its potential to the relative difference in the last column. "
+        "alternation, median (min–max). `Gravity`'s generalized forces equal those by autodiff of "
+        "its potential at the member's state to the relative difference in the last column. "
         f"A step of `simulate`'s default solver ({report['default_solver']}) evaluates the "
         f"field {report['stages']} times.",
         "",
@@ -78,6 +78,7 @@ def markdown(report):
                 "potential_gradient",
                 "field_vjp",
                 "gravity_vjp",
+                "potential_gradient_vjp",
                 "mj_forward",
             )
         )
