@@ -168,10 +168,10 @@ class AbstractSceneTerm(AbstractBodyTerm):
         """
         return self.scene.mode.unpack(self.scene, t, y)
 
-    def pack(self, g, q, U, qdot):
-        r"""The integration state $y = (g, x)$ of the pose, shape, locked velocity and shape
-        velocity, in the scene mode's layout."""
-        return self.scene.mode.pack(self.scene, g, q, U, qdot)
+    def pack(self, t, g, q, U, qdot):
+        r"""The integration state $y = (g, x)$ at time `t` of the pose, shape, locked velocity
+        and shape velocity, in the scene mode's layout."""
+        return self.scene.mode.pack(self.scene, t, g, q, U, qdot)
 
     def encode(self, t, state: State):
         r"""The integration state $y$ of `state` at time `t`, with $U = \xi + A(q)\dot q$.

@@ -85,7 +85,7 @@ def _count_primitives(jaxpr, names=None):
 
 def _vector_field_jaxpr(scene, d):
     term = bd.SceneTerm(scene)
-    y = term.pack(jnp.eye(4), jnp.zeros(d), jnp.zeros(6), jnp.zeros(d))
+    y = term.pack(0.0, jnp.eye(4), jnp.zeros(d), jnp.zeros(6), jnp.zeros(d))
     return jax.make_jaxpr(term.vf)(0.0, y, None).jaxpr
 
 

@@ -29,7 +29,7 @@ def _frame_terms(system, g, q, U, qdot, velocity):
     """Boosted-frame minus Galilean-frame accelerations from the scenes' vector fields, and
     the prediction of (2.9)–(2.10) from the checks, at the velocities `velocity` (batch)."""
     galilean = bd.Scene(system)
-    y = bd.SceneTerm(galilean).pack(g, q, U, qdot)
+    y = bd.SceneTerm(galilean).pack(0.0, g, q, U, qdot)
     d = system.shape_dim
 
     def accelerations(scene):

@@ -81,9 +81,9 @@ class AbstractMode(eqx.Module):
         `system` seen from `frame`."""
 
     @abc.abstractmethod
-    def pack(self, scene: SceneParts, g, q, U, qdot) -> Any:
-        r"""The integration state $y = (g, x)$ of the pose, shape, locked velocity and shape
-        velocity (a part the layout does not integrate is not read)."""
+    def pack(self, scene: SceneParts, t, g, q, U, qdot) -> Any:
+        r"""The integration state $y = (g, x)$ at time `t` of the pose, shape, locked velocity
+        and shape velocity (a part the layout does not integrate is not read)."""
 
     @abc.abstractmethod
     def unpack(self, scene: SceneParts, t, y) -> tuple[jax.Array, jax.Array, jax.Array, jax.Array]:

@@ -21,7 +21,7 @@ class FreeShapeMode(AbstractFreeMotionMode):
         if system.shape_dim == 0:
             raise ValueError("`FreeShapeMode` needs shape coordinates; a rigid body has none.")
 
-    def pack(self, scene: SceneParts, g, q, U, qdot):
+    def pack(self, scene: SceneParts, t, g, q, U, qdot):
         return g, jnp.concatenate([q, U, qdot])
 
     def unpack(self, scene: SceneParts, t, y):
@@ -31,7 +31,7 @@ class FreeShapeMode(AbstractFreeMotionMode):
 
     def encode(self, scene: SceneParts, t, state: State):
         q, qdot = checked_shape(scene, state)
-        return self.pack(scene, state.g, q, locked_velocity(scene.system, q, state.xi, qdot), qdot)
+        return self.pack(scene, t, state.g, q, locked_velocity(scene.system, q, state.xi, qdot), qdot)
 
     def decode(self, scene: SceneParts, t, y):
         g, q, U, qdot = self.unpack(scene, t, y)
@@ -51,7 +51,7 @@ class FreeShapeMode(AbstractFreeMotionMode):
             return y
         g, q, U, qdot = self.unpack(scene, t, y)
         q, qdot = recharted_shape(scene.system, q, qdot)
-        return self.pack(scene, g, q, U, qdot)
+        return self.pack(scene, t, g, q, U, qdot)
 
     def constraint_residual(self, scene: SceneParts, state: State):
         return state.xi[:0]

@@ -149,7 +149,7 @@ class AbstractPlaneContactMode(AbstractFreeMotionMode):
         xi = self._twist(n, jnp.concatenate([omega, sliding]))
         return State(g, jnp.zeros(0, xi.dtype), xi, jnp.zeros(0, xi.dtype))
 
-    def pack(self, scene: SceneParts, g, q, U, qdot):
+    def pack(self, scene: SceneParts, t, g, q, U, qdot):
         c, S = self._contact_frame(matmul(g[:3, :3].T, self.normal))
         omega = U[:3]
         return g, jnp.concatenate([omega, matmul(S.T, U[3:] - jnp.cross(c, omega))])
@@ -163,7 +163,7 @@ class AbstractPlaneContactMode(AbstractFreeMotionMode):
 
     def encode(self, scene: SceneParts, t, state: State):
         q, qdot = checked_shape(scene, state)
-        y = self.pack(scene, state.g, q, state.xi, qdot)
+        y = self.pack(scene, t, state.g, q, state.xi, qdot)
         g, _, xi, _ = self.unpack(scene, t, y)
         scale = jnp.linalg.norm(state.xi) + jnp.linalg.norm(state.g[:3, 3]) + 1.0
         off = jnp.linalg.norm(xi - state.xi) + jnp.linalg.norm(g[:3, 3] - state.g[:3, 3])

@@ -44,7 +44,7 @@ class PrescribedBaseMode(AbstractMode):
         if frame is not None:
             raise ValueError("give a `PrescribedBase`'s motion in the Galilean frame (frame=None).")
 
-    def pack(self, scene: SceneParts, g, q, U, qdot):
+    def pack(self, scene: SceneParts, t, g, q, U, qdot):
         return g, jnp.concatenate([q, qdot])
 
     def _shape(self, scene: SceneParts, y):

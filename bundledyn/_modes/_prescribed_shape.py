@@ -35,7 +35,7 @@ class PrescribedShapeMode(AbstractMode):
         if system.shape_dim == 0:
             raise ValueError("`Prescribed` needs a system with shape coordinates (d > 0).")
 
-    def pack(self, scene: SceneParts, g, q, U, qdot):
+    def pack(self, scene: SceneParts, t, g, q, U, qdot):
         return g, U
 
     def unpack(self, scene: SceneParts, t, y):
@@ -46,7 +46,7 @@ class PrescribedShapeMode(AbstractMode):
     def encode(self, scene: SceneParts, t, state: State):
         q, qdot = self.motion.at(jnp.asarray(t, dtype=state.g.dtype))
         U = locked_velocity(scene.system, q, state.xi, qdot)
-        return self.pack(scene, state.g, q, U, qdot)
+        return self.pack(scene, t, state.g, q, U, qdot)
 
     def decode(self, scene: SceneParts, t, y):
         g, q, U, qdot = self.unpack(scene, t, y)

@@ -18,7 +18,7 @@ class RigidBodyMode(AbstractFreeMotionMode):
                 "`RigidBodyMode` is for systems without shape coordinates; use `FreeShapeMode`."
             )
 
-    def pack(self, scene: SceneParts, g, q, U, qdot):
+    def pack(self, scene: SceneParts, t, g, q, U, qdot):
         return g, U
 
     def unpack(self, scene: SceneParts, t, y):
@@ -28,7 +28,7 @@ class RigidBodyMode(AbstractFreeMotionMode):
 
     def encode(self, scene: SceneParts, t, state: State):
         q, qdot = checked_shape(scene, state)
-        return self.pack(scene, state.g, q, state.xi, qdot)
+        return self.pack(scene, t, state.g, q, state.xi, qdot)
 
     def decode(self, scene: SceneParts, t, y):
         g, q, U, qdot = self.unpack(scene, t, y)

@@ -258,7 +258,7 @@ class RollingWheelMode(AbstractFreeMotionMode):
         independent, _ = self._split(scene.system.shape_dim)
         return jnp.concatenate([xi, qdot])[jnp.asarray(independent)]
 
-    def pack(self, scene: SceneParts, g, q, U, qdot):
+    def pack(self, scene: SceneParts, t, g, q, U, qdot):
         xi = body_twist(scene, q, U, qdot)
         return g, jnp.concatenate([q, self._characteristics(scene, xi, qdot)])
 
@@ -277,7 +277,7 @@ class RollingWheelMode(AbstractFreeMotionMode):
     def encode(self, scene: SceneParts, t, state: State):
         q, qdot = checked_shape(scene, state)
         U = locked_velocity(scene.system, q, state.xi, qdot)
-        y = self.pack(scene, state.g, q, U, qdot)
+        y = self.pack(scene, t, state.g, q, U, qdot)
         g, _, _, xi, _ = self._parts(scene, y)
         scale = jnp.linalg.norm(state.xi) + jnp.linalg.norm(state.g[:3, 3]) + 1.0
         off = (

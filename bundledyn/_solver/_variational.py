@@ -120,7 +120,7 @@ class VariationalMidpoint(AbstractLieGroupSolver):
         G1 = term.metric(q1)
         v1 = jnp.linalg.solve(G1, jnp.concatenate([m1, pi1]))
         U1 = jnp.linalg.solve(G1[:6, :6], m1)
-        y1 = term.pack(g0 @ lie.se3_exp(Omega), q1, U1, v1[6:])
+        y1 = term.pack(t1, g0 @ lie.se3_exp(Omega), q1, U1, v1[6:])
         y1 = checked_start(y1, t0, t1, y0, (p0, F0, Q0))
         error = jnp.max(jnp.abs(residual(z))) / (jnp.max(jnp.abs(p0)) + jnp.finfo(p0.dtype).tiny)
         # Equinox's enumerations inherit their parent's items (`nonlinear_divergence` is
