@@ -27,6 +27,7 @@ from ._stress._battery import (
 )
 from ._stress._failures import advice, bad_values, float32
 from ._stress._gradients import model_gradients, rigid_gradients
+from ._stress._orbit import orbital_speed
 from ._stress._ratios import (
     ball_turns,
     degenerate_stretch,
@@ -57,6 +58,7 @@ __all__ = [
     "mass_ratio",
     "model_battery",
     "model_gradients",
+    "orbital_speed",
     "rigid_gradients",
     "springs_motion",
     "springs_of",

@@ -66,8 +66,9 @@ _CHAIN_STATE = chain3_state()
 _RIGID_STATE = bd.State(jnp.eye(4), xi=jnp.array([0.4, -1.1, 0.7, 0.2, 0.1, -0.3]))
 _ALL_ROWS = slice(None)
 
-# One scene per built-in mode (a fixed base besides the moving one), and a free shape seen
-# from a falling frame. The prescribed shape and the moving deck do work on the system.
+# One scene per built-in mode (a fixed base besides the moving one; the centre of mass's
+# frame on a chain and on a rigid body), and a free shape seen from a falling frame. The
+# prescribed shape and the moving deck do work on the system.
 MODE_SCENES = {
     "free_shape": ModeScene(
         bd.Scene(chain(3), (bd.Gravity(), _SPRING)), _CHAIN_STATE, _ALL_ROWS, True
@@ -91,6 +92,18 @@ MODE_SCENES = {
         bd.Scene(chain(3), (bd.Gravity(), _SPRING), base=bd.PrescribedBase.fixed()),
         _CHAIN_STATE,
         slice(6, None),
+        True,
+    ),
+    "centre_of_mass_chain": ModeScene(
+        bd.Scene(chain(3), (bd.Gravity(), _SPRING), mode=bd.CentreOfMassMode()),
+        _CHAIN_STATE,
+        _ALL_ROWS,
+        True,
+    ),
+    "centre_of_mass_rigid_body": ModeScene(
+        bd.Scene(asymmetric_body(), (bd.Gravity(),), mode=bd.CentreOfMassMode()),
+        _RIGID_STATE,
+        _ALL_ROWS,
         True,
     ),
     "free_shape_falling_frame": ModeScene(

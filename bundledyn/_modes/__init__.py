@@ -5,6 +5,7 @@ registered in `SELECTIONS`: a new built-in mode is one file here and one line th
 """
 
 from ._base import AbstractFreeMotionMode, AbstractMode, SceneParts, frame_shift
+from ._centre_of_mass import CentreOfMassMode
 from ._charts import AbstractWindowChart, ChannelScales, DrivenChart, FloatingChart
 from ._floating import floating_field, galilean_kinematics
 from ._free_shape import FreeShapeMode, select as _select_free_shape
@@ -22,6 +23,7 @@ __all__ = [
     "AbstractMode",
     "AbstractPlaneContactMode",
     "AbstractWindowChart",
+    "CentreOfMassMode",
     "ChannelScales",
     "DrivenChart",
     "FloatingBase",

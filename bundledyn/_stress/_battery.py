@@ -11,6 +11,7 @@ from .._scene import Scene
 from ._conservation import free_run, orthogonality_row
 from ._failures import advice, bad_values, float32
 from ._gradients import model_gradients, rigid_gradients
+from ._orbit import orbital_speed
 from ._ratios import (
     ball_turns,
     degenerate_stretch,
@@ -38,6 +39,7 @@ CASES: tuple[tuple[Callable[..., tuple[StressRow, ...]], dict, dict], ...] = (
     (high_spin, {"rate": 1e3}, {"rate": 1e3, "turns": 100.0}),
     (high_spin, {"rate": 1e4}, {"rate": 1e4, "turns": 100.0}),
     (long_horizon, {}, {"t1": 1e3}),
+    (orbital_speed, {}, {"t1": 20.0}),
     (float32, {}, {}),
     (advice, {}, {}),
     (bad_values, {}, {}),
