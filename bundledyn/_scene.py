@@ -1,5 +1,7 @@
 """Scenes: a system, the effects acting on it, its shape and base modes and its frame of reference."""
 
+import warnings
+
 import equinox as eqx
 import jax.numpy as jnp
 import numpy as np
@@ -10,7 +12,13 @@ from ._frames import AbstractFrame
 from ._modes import AbstractMode, FloatingBase, Free, Prescribed, PrescribedBase, mode_of
 from ._systems._base import AbstractSystem
 from ._systems._constrained import ConstrainedSystem, JointCoupling
-from ._systems._mujoco_import import FixedTendon, ModelParts, parts_from_mjcf, parts_from_urdf
+from ._systems._mujoco_import import (
+    FixedTendon,
+    ModelParts,
+    model_gravity,
+    parts_from_mjcf,
+    parts_from_urdf,
+)
 from ._systems._multibody import Multibody
 
 
@@ -93,15 +101,19 @@ class Scene(eqx.Module):
           about `springref` as a `ShapeSpring` ($-k\,(q - q_{\rm spring})$) and each
           tendon's `stiffness` about its `springlength` $L_s$ as a `ShapeSpring` of rank one
           ($\tfrac12 k\,(c^T q + L_0 - L_s)^2$).
-        - `gravity`: add the model's `<option gravity>` as a `Gravity` (none if it is zero).
+        - `gravity`: add the model's `<option gravity>` as a `Gravity` (none if it is zero,
+          or if the model's `<flag gravity="disable">` turns it off, which warns).
 
         **Returns:**
 
-        A `Scene` of the `Multibody` with those effects (only those with a non-zero value).
+        A `Scene` of the `Multibody` with those effects (only those with a non-zero value),
+        its base held at the root's pose where the model welds the root to the world (a
+        root without a joint, as MuJoCo does; a `<freejoint/>` on the root floats it).
         """
         parts = parts_from_mjcf(source, passive=passive)
         system = system_of_parts(parts, section=section)
-        return cls(system, model_effects(parts, passive=passive, gravity=gravity))
+        effects = model_effects(parts, passive=passive, gravity=gravity)
+        return cls(system, effects, base=model_base(parts, section=section))
 
     @classmethod
     def from_urdf(cls, path, *, section=0, passive: bool = False, gravity: bool = False):
@@ -152,11 +164,35 @@ def model_effects(parts: ModelParts, *, passive: bool, gravity: bool) -> list[Ab
     effects = _passive_effects(parts) if passive else []
     if parts.couplings:
         effects = [on_full_shape(effect) for effect in effects]
-    acceleration = np.asarray(parts.model.opt.gravity, dtype=float)
-    if gravity and np.any(acceleration):
+    acceleration = model_gravity(parts.model)
+    if gravity and acceleration is None:
+        warnings.warn(
+            'the model turns gravity off (<flag gravity="disable">): no `Gravity` is added.',
+            stacklevel=3,
+        )
+    elif gravity and np.any(acceleration):
         size = float(np.linalg.norm(acceleration))
         effects.append(Gravity(size, acceleration / size))
     return effects
+
+
+def model_base(parts: ModelParts, *, section=0) -> PrescribedBase | None:
+    """The base of an imported model as MuJoCo has it: held at the root's pose where the
+    model welds its root to the world (no joint on the root), else None (floating).
+
+    **Raises:**
+
+    `ValueError` for a welded root with the section at another body, which would float.
+    """
+    if parts.root_pose is None:
+        return None
+    if section not in (0, parts.names[0]):
+        raise ValueError(
+            f"the model welds its root body '{parts.names[0]}' to the world (it has no joint), "
+            "so the root is the scene's fixed base and the section frame: use section=0, or "
+            "put a <freejoint/> on the root to float the model."
+        )
+    return PrescribedBase.fixed(parts.root_pose)
 
 
 def _passive_effects(parts: ModelParts) -> list[AbstractEffect]:

@@ -43,7 +43,7 @@ from ._nonholonomic import (
 )
 from ._paths import models
 from ._precision import check_tolerances, warn_in_callers_code
-from ._scene import Scene, model_effects, system_of_parts
+from ._scene import Scene, model_base, model_effects, system_of_parts
 from ._simulate import simulate
 from ._solids import Box, Capsule, Ellipsoid
 from ._solver._lie_euler import LieEuler
@@ -302,8 +302,9 @@ def _affine_body(t: _Table):
 
 
 def _model(t: _Table, kind, folder):
-    """An imported model's system, no solids, and the effects it asks for: its springs and
-    dampers (`passive = true`) and gravity (`gravity = "model"`)."""
+    """An imported model's system, no solids, the effects it asks for (its springs and
+    dampers, `passive = true`, and gravity, `gravity = "model"`) and its base as MuJoCo
+    has it (`model_base`: held where the model welds its root to the world)."""
     if t.has("path") == t.has("model"):
         raise t.fail("path", "give exactly one of `path` (a file) or `model` (a shipped model).")
     if t.has("model"):
@@ -321,20 +322,21 @@ def _model(t: _Table, kind, folder):
     with t.building(kind):
         parts = read(source, passive=passive)
         system = system_of_parts(parts)
-    return system, None, tuple(model_effects(parts, passive=passive, gravity=gravity))
+    effects = tuple(model_effects(parts, passive=passive, gravity=gravity))
+    return system, None, effects, model_base(parts)
 
 
 def _system(t: _Table, folder):
     kind = t.string("type", choices={"rigid_body", "multibody", "affine_body", "mjcf", "urdf"})
     if kind == "rigid_body":
         system, solid = _rigid_body(t)
-        built = system, (None if solid is None else (solid,)), ()
+        built = system, (None if solid is None else (solid,)), (), None
     elif kind == "multibody":
         system, solids = _multibody(t)
-        built = system, solids, ()
+        built = system, solids, (), None
     elif kind == "affine_body":
         system, solids = _affine_body(t)
-        built = system, solids, ()
+        built = system, solids, (), None
     else:
         built = _model(t, kind, folder)
     t.done()
@@ -382,8 +384,8 @@ def load_scene(path, *, passive: bool = False) -> Scene:
     if suffix not in (".xml", ".urdf"):
         raise SceneFileError(f"{path}: unknown model format {suffix!r}; use .xml, .urdf or .toml.")
     table = _Table(path, "", {"path": path.name, "passive": passive})
-    system, _, effects = _model(table, "mjcf" if suffix == ".xml" else "urdf", path.parent)
-    return Scene(system, list(effects))
+    system, _, effects, base = _model(table, "mjcf" if suffix == ".xml" else "urdf", path.parent)
+    return Scene(system, list(effects), base=base)
 
 
 # ------------------------------------------------------------------------------- scene
@@ -705,7 +707,7 @@ class SceneFile:
         except tomllib.TOMLDecodeError as error:
             raise SceneFileError(f"{path}: not valid TOML: {error}.") from None
         root = _Table(path, "", data)
-        system, solids, model_effects = _system(root.table("system"), path.parent)
+        system, solids, model_effects, base = _system(root.table("system"), path.parent)
         d = system.shape_dim
         effects = model_effects + tuple(_effect(t, d) for t in root.tables("effects"))
 
@@ -720,8 +722,14 @@ class SceneFile:
                 contacts[1], "a body rolls or skates: give one of [rolling], [skating]."
             )
         contact = _contact(root.table(contacts[0]), contacts[0]) if contacts else None
+        if contact is not None and base is not None:
+            raise root.fail(
+                contacts[0],
+                "the model welds its root to the world (the root body has no joint): a "
+                "body that rolls or skates needs a <freejoint/> on its root.",
+            )
         with root.building("scene"):
-            scene = Scene(system, effects, shape, frame, mode=contact)
+            scene = Scene(system, effects, shape, frame, base=base, mode=contact)
 
         t0, t1, saves = read_time(root.table("time"))
         initial = root.table("initial", {})

@@ -575,8 +575,80 @@ def test_ball_coordinates_of_quaternions():
     np.testing.assert_allclose(J, np.vstack([np.zeros((1, 3)), 0.5 * np.eye(3)]), atol=1e-15)
 
 
+# A root without a joint, which MuJoCo welds to the world, at a tilted pose; damped hinges
+# (one with a ref and rotor inertia), a ball joint and gravity off the vertical.
+WELDED = """<mujoco><compiler angle="radian"/>
+<option gravity="0.5 -1 -9.81" integrator="RK4" timestep="1e-4"/><worldbody>
+<body name="base" pos="0.1 0.2 0.3" quat="0.9 0.2 0.1 0"><inertial pos="0 0 0" mass="2"
+ diaginertia="0.1 0.1 0.1"/>
+<body name="arm" pos="0 0 -0.5"><joint type="hinge" axis="0 1 0" ref="0.2" damping="0.3"
+ armature="0.1"/><inertial pos="0 0 -0.2" mass="1" diaginertia="0.02 0.02 0.01"/>
+<body name="hand" pos="0 0 -0.4"><joint type="ball"/>
+<inertial pos="0.1 0 0" mass="0.5" diaginertia="0.01 0.008 0.005"/></body></body>
+<body name="tail" pos="0.2 0 0"><joint type="hinge" axis="1 0 0" damping="0.2"/>
+<inertial pos="0.15 0 0" mass="0.7" diaginertia="0.01 0.02 0.02"/></body>
+</body></worldbody></mujoco>"""
+
+
+def test_a_welded_root_stays_fixed_and_moves_as_mujoco_moves_it():
+    """A root without a joint is welded to the world, as MuJoCo welds it: `Scene.from_mjcf`
+    holds the base at the root's pose, the shape block of the metric (with the rotor
+    inertia) is MuJoCo's mass matrix to 1e-12, and 1 s with the model's gravity and dampers
+    equals MuJoCo's RK4 at dt = 1e-4 to 1e-9 while the base does not move."""
+    model = mujoco.MjModel.from_xml_string(WELDED)
+    with pytest.warns(UserWarning, match="qpos0"):
+        scene = bundledyn.Scene.from_mjcf(WELDED, passive=True, gravity=True)
+    assert isinstance(scene.mode, bundledyn.PrescribedBaseMode)
+    data = mujoco.MjData(model)
+    data.qpos[:], data.qvel[:] = random_state(model, np.random.default_rng(3), angle=0.5)
+    root = mujoco_poses(model, data, data.qpos.copy())[1]  # where MuJoCo holds the root
+    system = scene.system
+    start = bundledyn.state_from_mujoco(
+        system, data.qpos, data.qvel, qpos0=model.qpos0, free_root=False
+    )
+
+    def shape_velocity(qvel):
+        state = bundledyn.state_from_mujoco(
+            system, data.qpos, qvel, qpos0=model.qpos0, free_root=False
+        )
+        return state.qdot
+
+    P = jax.jacfwd(shape_velocity)(jnp.asarray(data.qvel))
+    mujoco.mj_forward(model, data)
+    M = np.zeros((model.nv, model.nv))
+    mujoco.mj_fullM(model, data, M)
+    ours = P.T @ system.metric(start.q)[6:, 6:] @ P
+    assert np.linalg.norm(ours - M) <= 1e-12 * np.linalg.norm(M)
+    for _ in range(10_000):
+        mujoco.mj_step(model, data)
+    saveat = diffrax.SaveAt(ts=jnp.linspace(0.0, 1.0, 5))
+    traj = bundledyn.simulate(scene, start, 1.0, saveat=saveat, rtol=1e-12, atol=1e-12)
+    np.testing.assert_allclose(traj.g, np.broadcast_to(root, traj.g.shape), atol=1e-15)
+    end = bundledyn.State(traj.g[-1], traj.q[-1], traj.xi[-1], traj.qdot[-1])
+    qpos, qvel = bundledyn.state_to_mujoco(system, end, qpos0=model.qpos0, free_root=False)
+    np.testing.assert_allclose(qpos, same_quaternions(model, qpos, data.qpos), atol=1e-9)
+    np.testing.assert_allclose(qvel, data.qvel, atol=1e-9)
+    with pytest.raises(ValueError, match="freejoint"):
+        _quiet(partial(bundledyn.Scene.from_mjcf, section="arm"), WELDED)
+
+
+def test_a_model_with_gravity_turned_off_falls_not():
+    """`<flag gravity="disable">` turns the model's gravity off: `Scene.from_mjcf(...,
+    gravity=True)` says so and adds none, and the body keeps its velocity."""
+    xml = """<mujoco><option gravity="0 0 -9.81"><flag gravity="disable"/></option>
+    <worldbody><body><freejoint/><inertial pos="0 0 0" mass="1" diaginertia="0.1 0.2 0.3"/>
+    </body></worldbody></mujoco>"""
+    with pytest.warns(UserWarning, match="turns gravity off"):
+        scene = bundledyn.Scene.from_mjcf(xml, gravity=True)
+    assert not scene.effects
+    state = bundledyn.State(jnp.eye(4), xi=jnp.array([0.0, 0.0, 0.0, 0.3, 0.0, 1.0]))
+    traj = bundledyn.simulate(scene, state, 1.0)
+    np.testing.assert_allclose(traj.g[-1, :3, 3], [0.3, 0.0, 1.0], atol=1e-12)
+
+
 def test_root_without_free_joint():
-    """A root welded to the world by MuJoCo is still floated; free_root=False converts."""
+    """The tree of a root without a joint (`Multibody.from_mjcf`) is a system any scene may
+    float (`Scene.from_mjcf` welds it, as MuJoCo does); free_root=False converts."""
     xml = """<mujoco><compiler angle="radian"/><worldbody>
       <body name="base" pos="0.1 0.2 0.3" quat="0.9 0.2 0.1 0"><inertial pos="0 0 0" mass="2"
           diaginertia="0.1 0.1 0.1"/>

@@ -31,7 +31,9 @@ class FreeShapeMode(AbstractFreeMotionMode):
 
     def encode(self, scene: SceneParts, t, state: State):
         q, qdot = checked_shape(scene, state)
-        return self.pack(scene, t, state.g, q, locked_velocity(scene.system, q, state.xi, qdot), qdot)
+        return self.pack(
+            scene, t, state.g, q, locked_velocity(scene.system, q, state.xi, qdot), qdot
+        )
 
     def decode(self, scene: SceneParts, t, y):
         g, q, U, qdot = self.unpack(scene, t, y)

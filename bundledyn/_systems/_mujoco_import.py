@@ -5,11 +5,13 @@ The importers read a compiled `mujoco.MjModel` (so every MJCF default, `childcla
 resolves it) and build a `Multibody`:
 
 - **The tree.** The worldbody must hold exactly one body, the *root*; it becomes the
-  floating base (body 0) and its frame is the section frame. The root may carry a free
-  joint or no joint at all; a root without one is still floated (bundledyn's systems
-  move freely in space: MuJoCo welds such a root to the world, bundledyn does not — put a
-  free joint on it to get the same state layout as MuJoCo). Links follow MuJoCo's body
-  order, so $q$ and $\dot q$ follow MuJoCo's joint order.
+  base (body 0) and its frame is the section frame. The root may carry a free joint or no
+  joint at all. MuJoCo welds a root without a joint to the world, and so does
+  `Scene.from_mjcf` (and a scene file or `bundledyn.load_scene` of the model): its base is
+  held at the root's pose (`PrescribedBase.fixed`, `ModelParts.root_pose`); the tree alone
+  (`Multibody.from_mjcf`) is a system any scene may float. Put a `<freejoint/>` on the
+  root to float it in MuJoCo and in bundledyn alike. Links follow MuJoCo's body order, so
+  $q$ and $\dot q$ follow MuJoCo's joint order.
 - **Joints** (axes and anchors in the child frame, MuJoCo's `jnt_axis` / `jnt_pos`):
   hinge → `Revolute`, slide → `Prismatic`, ball → `Spherical`; two hinges on one body whose
   axes intersect and are not parallel → `Universal` (anchored at the intersection); any
@@ -108,10 +110,12 @@ class ModelParts(NamedTuple):
     `armature` (rotor inertia), `damping`, `stiffness` and `spring_rest` (`springref` as a
     shape coordinate, $q = $ `qpos - qpos0`), zero for a ball joint's coordinates, the
     `tendons` with a spring or a damper (`FixedTendon`), `ignored` (what the import
-    left out, as the warning lists it), and the active joint equalities as `couplings`
+    left out, as the warning lists it), the active joint equalities as `couplings`
     `(dependent, independent, polycoef)` of shape coordinates (`JointCoupling`'s; with
     $q = $ `qpos - qpos0` MuJoCo's $y - y_0 = \sum_k a_k (x - x_0)^k$ reads
-    $q_y = \sum_k a_k q_x^k$; `independent` None where the joint is held).
+    $q_y = \sum_k a_k q_x^k$; `independent` None where the joint is held), and the
+    `root_pose` `(4, 4)` in the world where MuJoCo welds the root to it (a root without a
+    joint), None for a free root.
     """
 
     base: RigidBody
@@ -125,6 +129,7 @@ class ModelParts(NamedTuple):
     tendons: tuple[FixedTendon, ...]
     ignored: tuple[str, ...]
     couplings: tuple[tuple[int, int | None, np.ndarray], ...] = ()
+    root_pose: np.ndarray | None = None
 
 
 def _import_mujoco():
@@ -136,6 +141,15 @@ def _import_mujoco():
             'install it with `pip install "bundledyn[mujoco]"`.'
         ) from e
     return mujoco
+
+
+def model_gravity(model) -> np.ndarray | None:
+    """The acceleration of gravity a compiled model states (`<option gravity>`), or None
+    where its `<flag gravity="disable">` turns gravity off."""
+    mujoco = _import_mujoco()
+    if model.opt.disableflags & int(mujoco.mjtDisableBit.mjDSBL_GRAVITY):
+        return None
+    return np.asarray(model.opt.gravity, dtype=float)
 
 
 # --------------------------------------------------------------------------------------
@@ -575,6 +589,7 @@ def parts_from_mjmodel(model, *, passive: bool = False) -> ModelParts:
         stiffness=np.array(stiffness, dtype=float), spring_rest=np.array(rest, dtype=float),
         tendons=_fixed_tendons(model, coordinate, len(armature)), ignored=tuple(ignored),
         couplings=_couplings(model, coordinate),
+        root_pose=None if model.body_jntnum[root] else _pose_np(model.body_pos[root], model.body_quat[root]),
     )  # fmt: skip
 
 
