@@ -324,7 +324,10 @@ def test_an_arm_on_a_fixed_base_is_identified_from_its_torques_and_angles():
     )  # fmt: skip
     term = bd.SceneTerm(true_scene)
     accelerations = jax.vmap(lambda t, y: term.body_vf(t, y, None)[1][2:])(
-        traj.ts, jax.vmap(lambda t, g, q, qdot: term.pack(t, g, q, None, qdot))(traj.ts, traj.g, traj.q, traj.qdot)
+        traj.ts,
+        jax.vmap(lambda t, g, q, qdot: term.pack(t, g, q, None, qdot))(
+            traj.ts, traj.g, traj.q, traj.qdot
+        ),
     )
     at_samples = jnp.stack([jnp.interp(traj.ts, input_times, measured[:, i]) for i in range(2)], 1)
     for scene, low, high in ((result.scene, 0.9, 1.3), (result.parameters.scene, 5.0, np.inf)):
