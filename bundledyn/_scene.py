@@ -164,13 +164,15 @@ def model_effects(parts: ModelParts, *, passive: bool, gravity: bool) -> list[Ab
     effects = _passive_effects(parts) if passive else []
     if parts.couplings:
         effects = [on_full_shape(effect) for effect in effects]
+    if not gravity:
+        return effects
     acceleration = model_gravity(parts.model)
-    if gravity and acceleration is None:
+    if acceleration is None:
         warnings.warn(
             'the model turns gravity off (<flag gravity="disable">): no `Gravity` is added.',
             stacklevel=3,
         )
-    elif gravity and np.any(acceleration):
+    elif np.any(acceleration):
         size = float(np.linalg.norm(acceleration))
         effects.append(Gravity(size, acceleration / size))
     return effects

@@ -81,6 +81,7 @@ _EQ_JOINT = 2  # mujoco.mjtEq.mjEQ_JOINT: a joint's position a polynomial of ano
 _WRAP_JOINT = 1  # mjtWrap.mjWRAP_JOINT: a fixed tendon's joint term
 _JOINT_NAMES = {_FREE: "free", _BALL: "ball", _SLIDE: "slide", _HINGE: "hinge"}
 _MINVAL = 1e-15  # mjMINVAL: MuJoCo's threshold for "no mass"
+_DISABLE_GRAVITY = 1 << 7  # mjtDisableBit.mjDSBL_GRAVITY: `<flag gravity="disable">`
 
 
 class FixedTendon(NamedTuple):
@@ -146,8 +147,7 @@ def _import_mujoco():
 def model_gravity(model) -> np.ndarray | None:
     """The acceleration of gravity a compiled model states (`<option gravity>`), or None
     where its `<flag gravity="disable">` turns gravity off."""
-    mujoco = _import_mujoco()
-    if model.opt.disableflags & int(mujoco.mjtDisableBit.mjDSBL_GRAVITY):
+    if model.opt.disableflags & _DISABLE_GRAVITY:
         return None
     return np.asarray(model.opt.gravity, dtype=float)
 
