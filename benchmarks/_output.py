@@ -67,3 +67,20 @@ def destination(args, name, markdown):
         return out, name
     (out / f"{name}.md").write_text(markdown(json.loads((out / f"{name}.json").read_text())))
     return None
+
+
+def run(args, name, markdown, measure, ready=lambda: True) -> int:
+    """A benchmark's run from its parsed `args`: redraw `name.md` alone (`--report-only`),
+    or, once `ready()` says the peers are there, `measure()` the report, print its markdown
+    and write both files. The exit status: 0, or 1 when not `ready()`."""
+    where = destination(args, name, markdown)
+    if where is None:
+        return 0
+    if not ready():
+        return 1
+    out, stem_name = where
+    report = measure()
+    text = markdown(report)
+    print(text)
+    write(out, stem_name, report, text)
+    return 0

@@ -51,12 +51,4 @@ def main(argv=None):
     parser = _output.parser(DESCRIPTION, "one member of each problem, half a second")
     parser.add_argument("--repeats", type=int, default=3, help="cold rounds and timed runs")
     args = parser.parse_args(argv)
-    where = _output.destination(args, "nonholonomic", markdown)
-    if where is None:
-        return 0
-    out, name = where
-    report = measure(args.quick, args.repeats)
-    text = markdown(report)
-    print(text)
-    _output.write(out, name, report, text)
-    return 0
+    return _output.run(args, "nonholonomic", markdown, lambda: measure(args.quick, args.repeats))

@@ -29,14 +29,10 @@ def main(argv=None):
     parser = _output.parser(DESCRIPTION, "one three-body chain over 1 s")
     parser.add_argument("--repeats", type=int, default=5, help="rounds of alternated timings")
     args = parser.parse_args(argv)
-    where = _output.destination(args, "tensorial", markdown)
-    if where is None:
-        return 0
-    if not float64_cpu_run_with_mujoco():
-        return 1
-    out, name = where
-    report = measure(args.quick, args.repeats)
-    text = markdown(report)
-    print(text)
-    _output.write(out, name, report, text)
-    return 0
+    return _output.run(
+        args,
+        "tensorial",
+        markdown,
+        lambda: measure(args.quick, args.repeats),
+        ready=float64_cpu_run_with_mujoco,
+    )
