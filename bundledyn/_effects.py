@@ -216,9 +216,47 @@ class GravityGradient(AbstractCentralGravity):
 
     def mass_elements(self, system, g, q):
         R, p = g[:3, :3], g[:3, 3]
-        # The field's own metric jet: XLA computes the metric once for both.
-        m, c, l = mass_and_centre(system.metric_jet(q).metric[:6, :6])
+        m, c, l = mass_and_centre(system.metric(q)[:6, :6])
         return m[None], (p + R @ c)[None], (R @ l @ R.T)[None]
+
+    @eqx.filter_jit
+    def generalized_force(self, system, kin):
+        r"""$F_b = -\partial_\eta\Pi$ and $Q_H = -\partial_q\Pi$ through the locked inertia:
+        $\partial_q\Pi = \partial_c\Pi\,B_v/m + \sum_i e_i^T(\partial_q G)(P e_i)$, with
+        $P = \partial\Pi/\partial I_\omega$ the potential's derivative in the locked inertia's
+        rotational block (at fixed centre of mass) and $B_v = m\,\partial c/\partial q$
+        (Theorem 2.3, seed 004).
+
+        The metric's derivative enters through the jet's forms (`AbstractMetricJet.forms`)
+        of the three pairs $(e_i, P e_i)$, not by differentiating the metric; the jet is the
+        one the field computes, so inside the field XLA computes it once.
+
+        **Arguments:**
+
+        - `system`: the system; `kin`: the `Kinematics`.
+
+        **Returns:**
+
+        `(F_b, Q_H)`, shapes `(6,)` and `(d,)`.
+        """
+        jet = system.metric_jet(kin.q)
+        rows = jet.metric[:6]
+        m, c, _ = mass_and_centre(rows[:, :6])
+
+        def potential(eta, c, rotational):
+            g = kin.g @ lie.se3_exp(eta)
+            R, c_hat = g[:3, :3], lie.so3_hat(c)
+            l = rotational + m * c_hat @ c_hat  # about the centre of mass (`mass_and_centre`)
+            return self._maccullagh(m, g[:3, 3] + R @ c, R @ l @ R.T)
+
+        zero = jnp.zeros(6, kin.q.dtype)
+        dPi_deta, dPi_dc, dPi_drot = jax.grad(potential, argnums=(0, 1, 2))(zero, c, rows[:3, :3])
+        P = 0.5 * (dPi_drot + dPi_drot.T)
+        d = kin.q.shape[0]
+        angular = jnp.concatenate([jnp.eye(3, dtype=P.dtype), jnp.zeros((3, 3 + d), P.dtype)], 1)
+        forms = jet.forms(jnp.concatenate([angular, P @ angular]))
+        rotational = sum(forms[i, 3 + i] for i in range(3))
+        return -dPi_deta, -(rotational + dPi_dc @ rows[3:6, 6:] / m)
 
 
 class BodywiseGravityGradient(AbstractCentralGravity):
