@@ -13,6 +13,8 @@ from benchmarks.speed.gradient import vjp_unit
 
 CALLS = 1000
 GRAVITY = bd.Gravity(9.81)
+# The Earth's gravity gradient on the model, 400 km above the ground.
+GRAVITY_GRADIENT = bd.GravityGradient(3.986004418e14, (0.0, 0.0, -6.771e6))
 
 
 class PotentialGravity(bd.AbstractPotential):
@@ -65,6 +67,7 @@ def member_run(member: Member, repeats: int):
         "field": scene_field_sampler(bare, state),
         "gravity": scene_field_sampler(weighed, state),
         "potential_gradient": scene_field_sampler(by_potential, state),
+        "gravity_gradient": scene_field_sampler(bd.Scene(system, [GRAVITY_GRADIENT]), state),
         "field_vjp": _field_vjp_sampler(bare, state),
         "gravity_vjp": _field_vjp_sampler(weighed, state),
         "potential_gradient_vjp": _field_vjp_sampler(by_potential, state),

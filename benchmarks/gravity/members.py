@@ -2,7 +2,7 @@
 
 from benchmarks.family.members import HUMANOID, RATES, STRUCTURES, Member, random_tree
 
-LARGE = ((35, "mixed"), (50, "mixed"), (70, "mixed"))  # about 75, 110 and 150 DoF
+LARGE = ((35, "mixed"), (50, "mixed"), (70, "mixed"))  # 65, 115 and 140 DoF
 
 
 def members(quick: bool) -> list[Member]:

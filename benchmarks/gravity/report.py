@@ -15,6 +15,7 @@ RATIOS = (
         "field",
         None,
     ),
+    ("field with `GravityGradient` / field alone", "gravity_gradient", "field", None),
     ("field's VJP with `Gravity` / without", "gravity_vjp", "field_vjp", None),
     (
         "field's VJP with gravity by its potential's autodiff / without",
@@ -64,9 +65,9 @@ def markdown(report):
         "",
         "## Every member (µs per evaluation)",
         "",
-        "| model | dofs | field | with `Gravity` | by the potential's autodiff | field VJP | "
+        "| model | dofs | field | with `Gravity` | by the potential's autodiff | with `GravityGradient` | field VJP | "
         "with `Gravity` | by the potential's autodiff | mj_forward | `Gravity` / field | / mj_forward | agreement |",
-        "|---|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|",
+        "|---|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|",
     ]
     for m in members:
         t = m["times"]
@@ -76,6 +77,7 @@ def markdown(report):
                 "field",
                 "gravity",
                 "potential_gradient",
+                "gravity_gradient",
                 "field_vjp",
                 "gravity_vjp",
                 "potential_gradient_vjp",
