@@ -261,14 +261,7 @@ def identified(tmp_path_factory, optimized_compilation):
     """The files a lab would give, and what `bundledyn identify` does with them (`run_file`,
     the command without its argument parsing): the folder, the outputs' folder, the loaded
     file and the fit."""
-    return _identified(tmp_path_factory.getbasetemp() / "identify")
-
-
-# Once per worker: under `--dist loadgroup` a worker may run this file's tests between other
-# files', and pytest sets a module's fixtures up again each time it comes back to the file.
-@functools.cache
-def _identified(folder):
-    folder.mkdir()
+    folder = tmp_path_factory.mktemp("identify")
     _, data, inputs = noisy_record()
     (folder / "truth.xml").write_text(CHAIN)
     (folder / "nominal.xml").write_text(_nominal_mjcf())
