@@ -10,7 +10,7 @@ from .._state import State
 from .._systems._ball_chart import ball_columns, recharted_shape
 from ._base import AbstractFreeMotionMode, SceneParts
 from ._charts import FloatingChart
-from ._floating import checked_shape
+from ._floating import body_twist, checked_shape
 
 __all__ = ["CentreOfMassMode"]
 
@@ -95,22 +95,17 @@ class CentreOfMassMode(AbstractFreeMotionMode):
         U = locked_velocity(scene.system, q, state.xi, qdot)
         return self.pack(scene, t, state.g, q, U, qdot)
 
-    def _relative_twist(self, geo, U_c, qdot):
-        r"""$\xi_c = U_c - A\dot q$: the section frame's twist relative to the centre's frame."""
-        return U_c - matmul(geo.A, qdot) if qdot.shape[0] else U_c
-
     def decode(self, scene: SceneParts, t, y):
         g, q, U, qdot = self.unpack(scene, t, y)
         g_c, _, v_c, _, U_c, _ = self._split(scene, y)
-        geo = bundle_geometry(scene.system, q, U_c, qdot)
-        xi = self._relative_twist(geo, U_c, qdot) + _frame_velocity(g_c[:3, :3], v_c)
+        xi = body_twist(scene, q, U_c, qdot) + _frame_velocity(g_c[:3, :3], v_c)
         return State(g, q, xi, qdot), U
 
     def body_field(self, scene: SceneParts, t, y):
         g_c, c_0, v_c, q, U_c, qdot = self._split(scene, y)
         R = g_c[:3, :3]
         geo = bundle_geometry(scene.system, q, U_c, qdot)
-        xi_c = self._relative_twist(geo, U_c, qdot)
+        xi_c = U_c - matmul(geo.A, qdot) if qdot.shape[0] else U_c  # relative to the frame
         kin = Kinematics(
             t, _translated(c_0 + t * v_c, g_c), q, xi_c + _frame_velocity(R, v_c), qdot
         )
