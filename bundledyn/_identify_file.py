@@ -113,7 +113,8 @@ class IdentificationFile:
     - `[data]` `path`: the measurements, an `.npz` written by `Measurements.save`, or a
       `.csv` of MuJoCo-layout rows (`t`, `qpos`, `qvel`) with their noise levels in
       `[data.noise]` (`rotation`, `position`, `q`, `angular_velocity`,
-      `linear_velocity`, `qdot`).
+      `linear_velocity`, `qdot`; as recorded, the linear velocity MuJoCo's world-frame
+      one: `Measurements.from_mujoco`).
     - `[inputs]` (optional) `path`: an `.npz` with `ts` and `joint_forces` `(m, d)` and/or
       `wrenches` `(m, k, 6)` with `wrench_bodies` (`-1` for the section frame);
       `interpolation` (`"cubic"`).
@@ -189,17 +190,26 @@ class IdentificationFile:
         )  # fmt: skip
 
 
-def estimates_json(result: FitResult, truth: dict[str, float] | None = None) -> dict:
-    """The fit's outcome as JSON-ready data: estimates with standard errors (and the truth),
-    what is undetermined, the gauge, the convergence."""
+def estimates_json(result: FitResult, truth: Scene | None = None) -> dict:
+    """The fit's outcome as JSON-ready data: the base parameters and each body's estimates
+    with standard errors (and the truth's values), what is undetermined, the gauge, the
+    convergence."""
     ident = result.identifiability
+    true_values = None if truth is None else result.values_of(truth)
+    true_base = None if truth is None else result.base_values_of(truth)
     estimates = [
         {"name": e.name, "value": e.value, "std": e.std if e.determined else None,
-         "determined": e.determined, **({"truth": truth[e.name]} if truth else {})}
+         "determined": e.determined, **({"truth": true_values[e.name]} if true_values else {})}
         for e in ident.estimates
+    ]  # fmt: skip
+    base = [
+        {"name": b.name, "value": b.value, "std": b.std,
+         **({"truth": true_base[k]} if true_base is not None else {})}
+        for k, b in enumerate(ident.base_parameters)
     ]  # fmt: skip
     return {
         "gauge": result.gauge,
+        "base_parameters": base,
         "estimates": estimates,
         "undetermined": list(ident.undetermined),
         "noise_scale": ident.noise_scale,
@@ -245,17 +255,16 @@ def write_outputs(
     """Write the fit's estimates (JSON), report (text), fitted model (MJCF, when the model
     is MJCF) and pictures (PNG) into `out`; return the paths."""
     name = file.output["name"]
-    truth = None if file.truth is None else result.values_of(file.truth)
     written = [out / f"{name}_estimates.json", out / f"{name}_report.txt"]
-    written[0].write_text(json.dumps(estimates_json(result, truth), indent=1))
-    written[1].write_text(result.report() + "\n")
+    written[0].write_text(json.dumps(estimates_json(result, file.truth), indent=1))
+    written[1].write_text(result.report(file.truth) + "\n")
     if file.model_path.suffix.lower() == ".xml":
         written.append(write_mjcf(result, file.model_path, out / f"{name}_fitted.xml"))
     if plots and file.output["plots"]:
         from ._viz._identification import plot_identification
 
         written.append(out / f"{name}_identification.png")
-        plot_identification(result, truth=truth, path=written[-1])
+        plot_identification(result, truth=file.truth, path=written[-1])
     return written
 
 
@@ -270,7 +279,7 @@ def run_file(file: IdentificationFile, out: pathlib.Path, *, progress: bool, plo
         f"{int(np.shape(file.measurements.ts)[0])} samples, {file.windows.count} windows"
     )
     result = file.fit(progress=progress)
-    print(result.report())
+    print(result.report(file.truth))
     for path in write_outputs(file, result, out, plots=plots):
         print(f"  wrote {path}")
     return result

@@ -12,7 +12,7 @@ parameters = identify.Parameters(bd.Scene(nominal_system))          # what is fi
 data = identify.Measurements.from_mujoco(system, ts, qpos, qvel, noise=identify.Noise(...))
 torques = identify.Inputs(ts, joint_forces=tau)                     # known inputs
 result = identify.fit(parameters, data, inputs=torques, gauge=identify.MeasuredInputs())
-print(result.report())          # estimates with 95 % intervals, and what is undetermined
+print(result.report())          # base parameters with 95 % intervals, what is undetermined
 ```
 
 Each body's ten inertial parameters are its 4×4 pseudo-inertia (`pseudo_inertia`), fitted
@@ -20,12 +20,18 @@ through its log-Cholesky coordinates (`log_cholesky_from_pseudo_inertia`), so th
 iterate is a physical body (Rucker & Wensing 2022). The fit starts from the equation error
 of momentum and energy (`warm_start`), refines the output error by multiple shooting
 (`Windows`) with exact forward-mode Jacobians and Levenberg–Marquardt, and reports the
-identifiability of the solution: what the data determine, with standard errors, and the
-combinations they cannot (the mass scale without a `gauge`, mass a joint carries alike on
+identifiability of the solution: what the data determine (the base parameters: the
+combinations of each body's standard parameters that no blind direction moves), with
+standard errors, and the combinations they cannot (the mass scale without a `gauge`, mass a joint carries alike on
 its two bodies, directions the motion did not excite), in physical terms.
 """
 
-from ._identify._data import Inputs, Measurements, Noise
+from ._identify._base_parameters import (
+    BaseParameter,
+    standard_parameter_names,
+    standard_parameters,
+)
+from ._identify._data import Inputs, Measurements, Noise, body_frame_velocity_noise
 from ._identify._fit import FitResult, fit
 from ._identify._gauge import AbstractGauge, KnownBodies, KnownMass, MeasuredInputs
 from ._identify._identifiability import Estimate, Identifiability
@@ -41,6 +47,7 @@ from ._systems._pseudo_inertia import (
 
 __all__ = [
     "AbstractGauge",
+    "BaseParameter",
     "Estimate",
     "FitResult",
     "Identifiability",
@@ -52,10 +59,13 @@ __all__ = [
     "Noise",
     "Parameters",
     "Windows",
+    "body_frame_velocity_noise",
     "fit",
     "inertial_from_pseudo_inertia",
     "log_cholesky_from_pseudo_inertia",
     "pseudo_inertia",
     "pseudo_inertia_from_log_cholesky",
+    "standard_parameter_names",
+    "standard_parameters",
     "warm_start",
 ]

@@ -8,6 +8,7 @@ import subprocess
 import sys
 from importlib import import_module
 
+import numpy as np
 import pytest
 
 import bundledyn as bd
@@ -109,9 +110,11 @@ def first_python_block(path):
     return re.findall(r"```python\n(.*?)```", (ROOT / path).read_text(), re.S)[0]
 
 
-def run_example(path, cwd):
+def run_example(path, cwd, **environment):
     env = dict(
-        os.environ, PYTHONPATH=os.pathsep.join([str(ROOT), os.environ.get("PYTHONPATH", "")])
+        os.environ,
+        PYTHONPATH=os.pathsep.join([str(ROOT), os.environ.get("PYTHONPATH", "")]),
+        **environment,
     )
     done = subprocess.run(
         [sys.executable, "-c", first_python_block(path)],
@@ -140,6 +143,27 @@ def test_the_batch_guide_shards_over_two_devices(tmp_path):
     out = run_example("docs/how-to/batches.md", tmp_path).splitlines()
     assert out[-2].count("CpuDevice") == 2
     assert float(out[-1]) < 1e-12
+
+
+@pytest.mark.slow  # an identification fit
+def test_the_identification_guide_runs_and_its_intervals_cover_the_truth(tmp_path):
+    """The guide's program, as a user runs it (compiled as users' code is): MuJoCo's record
+    of the shipped chain with noise stated in MuJoCo's layout is fitted to the noise (scale
+    0.9-1.1: the body-frame velocity's level includes the orientation's share), and each of
+    its 24 base parameters is within 3.5 of its standard errors of the truth, χ² per base
+    parameter 0.3-2.5: a second record, motion and noise beside `test_identify_mujoco.py`'s."""
+    pytest.importorskip("mujoco")
+    report = run_example(
+        "docs/how-to/identification.md", tmp_path, JAX_DISABLE_MOST_OPTIMIZATIONS="0"
+    )
+    assert "not converged" not in report
+    scale = float(re.search(r"noise scale ([\d.]+)", report).group(1))
+    assert 0.9 < scale < 1.1
+    assert "What the data determine: 24 base parameters" in report
+    table = report.split("combination\n")[1].split("  Determined alone")[0]
+    scores = np.array([float(line.split()[3]) for line in table.splitlines()])
+    assert scores.size == 24 and np.max(np.abs(scores)) < 3.5, scores
+    assert 0.3 < np.mean(scores**2) < 2.5, np.mean(scores**2)
 
 
 def test_the_gradient_guide_runs(tmp_path):

@@ -23,7 +23,7 @@ import numpy as np
 import pytest
 
 import bundledyn as bd
-from bundledyn import identify
+from bundledyn import identify, viz
 from bundledyn._cli import main
 from bundledyn._identify_file import run_file
 
@@ -133,13 +133,15 @@ def experiment(identified):
     return truth, data, identified[3]
 
 
-def _hinge_regroupings(system):
-    """δP of mass on each hinge's axis line, added to the child and taken from the parent."""
+HINGE_AXES = ((0.0, 0.3, 1.0), (0.2, 1.0, 0.0))  # the chain's MJCF's
+
+
+def _hinge_regroupings(system, axes=HINGE_AXES):
+    """δP of mass on each hinge's axis line, added to the child and taken from the parent
+    (the hinges' `axes`: the chain's MJCF's by default)."""
+    axes = [np.asarray(a, dtype=float) for a in axes]
     directions = []
-    for child, axis, anchor in (
-        (1, np.array([0.0, 0.3, 1.0]), np.zeros(3)),
-        (2, np.array([0.2, 1.0, 0.0]), np.zeros(3)),
-    ):
+    for child, axis, anchor in ((1, axes[0], np.zeros(3)), (2, axes[1], np.zeros(3))):
         u, w = np.append(anchor, 1.0), np.append(axis / np.linalg.norm(axis), 0.0)
         T = np.asarray(system.placement[child])
         for delta in (np.outer(u, u), np.outer(u, w) + np.outer(w, u), np.outer(w, w)):
@@ -195,6 +197,50 @@ def test_the_standard_errors_cover_the_truth(experiment):
     chi2 = error @ np.diag(1.0 / w[w > 1e-12 * w.max()]) @ error
     assert result.parameters.size - determined.shape[1] == 6
     assert 0.2 < chi2 / determined.shape[1] < 3.0, (chi2, determined.shape[1])
+
+
+def _standard_of(P):
+    """Khalil's standard parameters of pseudo-inertias `(..., 4, 4)`, from their definition:
+    per body XX, XY, XZ, YY, YZ, ZZ (inertia about the frame's origin, from the second
+    moments Σ), MX, MY, MZ (first moments), M."""
+    S = P[..., :3, :3]
+    inertia = [S[..., 1, 1] + S[..., 2, 2], -S[..., 0, 1], -S[..., 0, 2],
+               S[..., 0, 0] + S[..., 2, 2], -S[..., 1, 2], S[..., 0, 0] + S[..., 1, 1]]  # fmt: skip
+    first = [P[..., 0, 3], P[..., 1, 3], P[..., 2, 3], P[..., 3, 3]]
+    return np.stack(inertia + first, axis=-1).reshape(*np.shape(P)[:-3], -1)
+
+
+def test_every_base_parameter_is_determined_and_its_interval_covers_the_truth(identified):
+    """The report's base parameters: 30 - 6 = 24 combinations of the standard parameters,
+    none moved by the hinges' regroupings (built here from the geometry of the fitted
+    model: the axes as MuJoCo's XML writer wrote them into the nominal file, 6 digits), each
+    with a finite standard error. Against the truth's values, no error exceeds 3.5 of its
+    standard errors, and in the base parameters' covariance the χ² per base parameter is
+    0.3-2.5."""
+    folder, _, _, result = identified
+    truth = noisy_record()[0]
+    base = result.identifiability.base_parameters
+    assert len(base) == 24
+    coefficients = np.stack([b.coefficients for b in base])
+    axes = mujoco.MjModel.from_xml_path(str(folder / "nominal.xml")).jnt_axis[1:]
+    regroupings = _hinge_regroupings(truth, axes).T.reshape(6, 3, 4, 4)
+    moved = coefficients @ _standard_of(regroupings).T
+    size = np.linalg.norm(coefficients, axis=1)[:, None] * np.linalg.norm(
+        _standard_of(regroupings), axis=1
+    )
+    assert np.all(np.abs(moved) < 1e-9 * size), np.max(np.abs(moved) / size)
+    values = np.array([b.value for b in base])
+    stds = np.array([b.std for b in base])
+    assert np.all(np.isfinite(stds) & (stds > 0))
+    errors = values - coefficients @ _standard_of(np.asarray(truth.pseudo_inertias()))
+    assert np.max(np.abs(errors / stds)) < 3.5, errors / stds
+    jacobian = jax.jacfwd(lambda t: identify.standard_parameters(result.parameters, t))(
+        result.theta
+    )
+    gradients = coefficients @ np.asarray(jacobian)
+    covariance = gradients @ result.identifiability.covariance @ gradients.T
+    chi2 = errors @ np.linalg.solve(covariance, errors)
+    assert 0.3 < chi2 / len(base) < 2.5, chi2 / len(base)
 
 
 def test_a_motion_it_did_not_see_is_predicted_within_the_noise(experiment):
@@ -287,6 +333,21 @@ def test_the_command_fits_and_writes_estimates_report_model_and_pictures(identif
     report = (out / "chain_report.txt").read_text()
     assert "gauge: measured inputs (the work of the known forces) fix the mass scale" in report
     assert "The data do not determine:" in report and "not converged" not in report
+    # The base parameters, each with its error against the file's [truth].
+    assert "What the data determine: 24 base parameters" in report
+    rows = [line.split() for line in report.splitlines() if "base.M + 1 arm.M + 1 hand.M" in line]
+    assert len(rows) == 1 and abs(float(rows[0][3])) < 3.5  # the total mass's error / σ
+
+
+def test_the_information_plot_spans_the_determined_values_and_the_noise_line(identified):
+    """Its axis runs from a decade below the smallest determined singular value (or the
+    noise line) to above the largest, not down to the rounding-level ones."""
+    result = identified[3]
+    ident = result.identifiability
+    values = np.asarray(ident.singular_values)
+    shown = np.append(values[values > ident.noise_scale], ident.noise_scale)
+    low, high = viz.plot_identification(result).axes[1].get_ylim()
+    assert shown.min() / 100 < low < shown.min() and shown.max() < high < 10 * shown.max()
 
 
 def _beside_regroupings(P, P_reference, system):
@@ -340,6 +401,11 @@ def test_the_written_estimates_are_the_fits(identified):
     for e in written["estimates"]:
         assert e["truth"] == pytest.approx(values[e["name"]], rel=1e-12, abs=1e-15)
         assert (e["std"] is None) == (not e["determined"])
+    base = result.identifiability.base_parameters
+    assert [b["name"] for b in written["base_parameters"]] == [b.name for b in base]
+    true_base = result.base_values_of(bd.Scene(truth))
+    for b, fitted, true in zip(written["base_parameters"], base, true_base, strict=True):
+        assert (b["value"], b["std"], b["truth"]) == (fitted.value, fitted.std, true)
 
 
 def test_the_fitted_mjcf_holds_the_fitted_bodies(identified):

@@ -23,7 +23,7 @@ from .._state import State
 from .._systems._mujoco_state import state_from_mujoco
 from .._systems._multibody import AbstractMultibody
 
-__all__ = ["Inputs", "Measurements", "Noise"]
+__all__ = ["Inputs", "Measurements", "Noise", "body_frame_velocity_noise"]
 
 _CHANNELS = ("pose", "q", "xi", "qdot", "body_poses")
 
@@ -63,6 +63,28 @@ class Noise(eqx.Module):
     angular_velocity: Level = _level_field(1.0)
     linear_velocity: Level = _level_field(1.0)
     qdot: Level = _level_field(1.0)
+
+
+def body_frame_velocity_noise(noise: Noise, v_body) -> Noise:
+    r"""`noise` (its linear velocity's level that of a world-frame velocity) with the level
+    of the body-frame linear velocity $R^Tv$ computed with a measured orientation.
+
+    An orientation off by $\delta\phi$ (level $\sigma_R$ per axis) turns $v_b$ by
+    $-\delta\phi\times v_b$: per component, variance $\sigma_R^2(|v_b|^2 - v_{b,i}^2)$,
+    $\tfrac23\sigma_R^2|v_b|^2$ on average. The level returned is
+    $\sqrt{\sigma_v^2 + \tfrac23\sigma_R^2\,\overline{|v_b|^2}}$, the mean over the samples.
+
+    **Arguments:**
+
+    - `noise`: the levels as recorded; `v_body`: the body-frame linear velocities, `(n, 3)`.
+
+    **Returns:**
+
+    The `Noise` with `linear_velocity` replaced.
+    """
+    mean_square = jnp.mean(jnp.sum(jnp.square(v_body), axis=-1))
+    combined = jnp.sqrt(noise.linear_velocity**2 + (2 / 3) * noise.rotation**2 * mean_square)
+    return eqx.tree_at(lambda n: n.linear_velocity, noise, np.asarray(combined))
 
 
 class Measurements(eqx.Module):
@@ -150,6 +172,12 @@ class Measurements(eqx.Module):
         """Measurements from MuJoCo's `qpos`, `qvel` at sample times (a rollout, or a lab's
         log written in MuJoCo's layout), through `bundledyn.state_from_mujoco`.
 
+        `noise` states the levels of the record as written, MuJoCo's layout: the free
+        joint's linear velocity in the world frame. The body-frame twist is that velocity
+        turned by the measured orientation, so its linear part carries the orientation's
+        noise too: where the pose is measured, its level is raised to the root mean square
+        of both (`body_frame_velocity_noise`).
+
         **Arguments:**
 
         - `system`: the imported tree; `ts`: `(n,)`; `qpos`, `qvel`: `(n, nq)`, `(n, nv)`.
@@ -157,6 +185,8 @@ class Measurements(eqx.Module):
         """
         to_state = jax.vmap(lambda p, v: state_from_mujoco(system, p, v, qpos0=qpos0))
         states = to_state(jnp.asarray(qpos, dtype=float), jnp.asarray(qvel, dtype=float))
+        if "pose" in channels and "xi" in channels:
+            noise = body_frame_velocity_noise(noise, states.xi[:, 3:])
         return cls.from_states(ts, states, noise=noise, channels=channels)
 
     def save(self, path) -> None:

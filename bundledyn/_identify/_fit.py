@@ -21,6 +21,7 @@ from .._modes import PrescribedBase
 from .._scene import Scene
 from .._simulate import simulate
 from .._state import State
+from ._base_parameters import standard_parameters
 from ._data import Inputs, Measurements, level
 from ._gauge import AbstractGauge
 from ._identifiability import (
@@ -83,18 +84,30 @@ class FitResult:
         """The physical parameters with standard errors (`Identifiability.estimates`)."""
         return self.identifiability.estimates
 
+    def _parameters_of(self, scene: Scene) -> Parameters:
+        return Parameters(
+            scene, bodies=self.parameters.bodies, joint_constants=self.parameters.joint_constants
+        )
+
     def values_of(self, scene: Scene) -> dict[str, float]:
         """The same physical quantities as `estimates` (by name) in another scene of the
         same structure: the truth, when the data were synthetic, or the nominal scene."""
-        other = Parameters(
-            scene, bodies=self.parameters.bodies, joint_constants=self.parameters.joint_constants
-        )
+        other = self._parameters_of(scene)
         values = np.asarray(physical_quantities(other, other.initial()))
         return {e.name: float(v) for e, v in zip(self.estimates(), values, strict=True)}
 
-    def report(self) -> str:
-        """A printable summary: the gauge, the convergence, the estimates with 95 %
-        intervals, and what the data leaves undetermined."""
+    def base_values_of(self, scene: Scene) -> list[float]:
+        """The base parameters' combinations (`Identifiability.base_parameters`, in order)
+        in another scene of the same structure, e.g. the truth."""
+        other = self._parameters_of(scene)
+        standard = np.asarray(standard_parameters(other, other.initial()))
+        return [float(b.coefficients @ standard) for b in self.identifiability.base_parameters]
+
+    def report(self, truth: Scene | None = None) -> str:
+        """A printable summary: the gauge, the convergence, the base parameters (what the
+        data determine) with 95 % intervals, each body's parameters that are determined
+        alone, and what the data leave undetermined; with `truth` (a scene of the same
+        structure), each estimate's error."""
         ident = self.identifiability
         lines = [
             f"Identification of {len(self.parameters.bodies)} bodies "
@@ -105,17 +118,45 @@ class FitResult:
             f"{'' if self.stats['converged'] else ' (not converged)'}.",
             f"  noise scale {ident.noise_scale:.3g} (1 when the stated noise levels are right); "
             f"condition number {ident.condition_number:.3g}.",
-            f"  {'parameter':<24}{'estimate':>14}{'± 95 %':>14}",
         ]
-        for e in ident.estimates:
-            interval = f"{1.96 * e.std:14.3g}" if e.determined else f"{'undetermined':>14}"
-            lines.append(f"  {e.name:<24}{e.value:14.6g}{interval}")
+        base = ident.base_parameters
+        true_base = None if truth is None else self.base_values_of(truth)
+        lines += [
+            f"  What the data determine: {len(base)} base parameters (M mass, MX MY MZ its "
+            "first moments m·c, XX … ZZ the inertia about the body frame's origin, in body "
+            "axes; a child's parameters regrouped into its parent's):",
+            _row("estimate", "± 95 %", "combination", truth is not None),
+        ]
+        for k, b in enumerate(base):
+            error = None if true_base is None else (b.value - true_base[k], b.std)
+            lines.append(_row(f"{b.value:.6g}", f"{1.96 * b.std:.3g}", b.name, error=error))
+        alone = [e for e in ident.estimates if e.determined]
+        true_values = None if truth is None else self.values_of(truth)
+        lines += [
+            f"  Determined alone: {len(alone)} of {len(ident.estimates)} physical parameters "
+            "(mass, centre of mass, inertia about the centre of mass)" + (":" if alone else "."),
+        ]
+        for e in alone:
+            error = None if true_values is None else (e.value - true_values[e.name], e.std)
+            lines.append(_row(f"{e.value:.6g}", f"{1.96 * e.std:.3g}", e.name, error=error))
         if ident.undetermined:
             lines.append("  The data do not determine:")
             lines += [f"    - {u}" for u in ident.undetermined]
         else:
             lines.append("  The data determine every parameter.")
         return "\n".join(lines)
+
+
+def _row(estimate: str, interval: str, name: str, heading: bool = False, error=None) -> str:
+    """One line of the report's tables; `error`: (estimate - truth, standard error)."""
+    if heading:
+        middle = f"{'error':>12}{'error/σ':>9}"
+    elif error is not None:
+        difference, std = error
+        middle = f"{difference:12.3g}{difference / std if std > 0 else float('nan'):9.2f}"
+    else:
+        middle = ""
+    return f"    {estimate:>14}{interval:>11}{middle}  {name}"
 
 
 def _window_starts(windows: Windows, parameters: Parameters, measurements: Measurements, guess):

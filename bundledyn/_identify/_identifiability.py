@@ -27,6 +27,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from .._systems._pseudo_inertia import inertial_from_pseudo_inertia
+from ._base_parameters import BaseParameter, base_parameters
 from ._parameters import Parameters
 from ._regrouping import named_directions
 
@@ -57,7 +58,9 @@ class Identifiability(NamedTuple):
     descending), `condition_number` (of the determined part), `undetermined` (a sentence
     per blind direction, in physical terms), `noise_scale` ($\hat\sigma$, 1 when the noise
     levels were right), `covariance` (of $\theta$ on the determined subspace),
-    `estimates` (a tuple of `Estimate`).
+    `estimates` (a tuple of `Estimate`: each body's physical parameters, most of them not
+    determined alone), `base_parameters` (a tuple of `BaseParameter`: the combinations
+    the data determine, with standard errors).
     """
 
     singular_values: np.ndarray
@@ -66,6 +69,7 @@ class Identifiability(NamedTuple):
     noise_scale: float
     covariance: np.ndarray
     estimates: tuple[Estimate, ...]
+    base_parameters: tuple[BaseParameter, ...]
 
 
 def null_space(C):
@@ -140,7 +144,9 @@ def _describe(direction, parameters: Parameters, value, gradients, names):
 def _blind_directions(blind, scales, parameters: Parameters, theta, quantities, names):
     r"""The blind subspace (orthonormal columns, scaled coordinates) in words: the named
     directions it contains (`named_directions`), then what remains, by its largest
-    physical components (`quantities`: their values and Jacobian at $\theta$)."""
+    physical components (`quantities`: their values and Jacobian at $\theta$). Also a basis
+    of it made of those directions: the named ones exactly as built from the geometry
+    (the eigenvectors hold them only to the information's rounding), then the rest."""
     found, inside = [], []
     for label, u in named_directions(parameters, theta).items():
         u = u / scales
@@ -156,7 +162,8 @@ def _blind_directions(blind, scales, parameters: Parameters, theta, quantities, 
     remainder = left[:, singular > _INSIDE] if rest.size else rest
     value, gradients = quantities
     found += [_describe(scales * v, parameters, value, gradients, names) for v in remainder.T]
-    return tuple(found)
+    basis = np.concatenate([np.stack(inside, axis=1), remainder], axis=1) if inside else remainder
+    return tuple(found), basis
 
 
 def analyse(parameters: Parameters, theta, information, chi2: float, dof: int) -> Identifiability:
@@ -196,7 +203,7 @@ def analyse(parameters: Parameters, theta, information, chi2: float, dof: int) -
         Estimate(name, float(v), float(s) if ok else float("nan"), bool(ok))
         for name, v, s, ok in zip(names, values, stds, share <= _ORTHOGONAL, strict=True)
     )
-    undetermined = _blind_directions(
+    undetermined, blind_basis = _blind_directions(
         blind_vectors, S, parameters, theta, (values, gradients), names
     )
     kept = eigenvalues[determined]
@@ -208,4 +215,5 @@ def analyse(parameters: Parameters, theta, information, chi2: float, dof: int) -
         float(np.sqrt(sigma2)),
         covariance,
         estimates,
+        base_parameters(parameters, theta, S[:, None] * blind_basis, covariance),
     )
