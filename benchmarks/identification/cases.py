@@ -16,6 +16,7 @@ import numpy as np
 import bundledyn as bd
 
 RATE = 100  # Hz, the record's sample rate (and the torque log's)
+TIMESTEP = 2e-4  # s, MuJoCo's step in every case's MJCF
 FACTORS = (1.2, 0.8, 1.25)  # each fitted body's pseudo-inertia at the start, over the truth's
 
 CHAIN = (bd.models / "floating_chain.xml").read_text()

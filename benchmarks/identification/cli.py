@@ -12,7 +12,7 @@ DESCRIPTION = "Identification against mujoco.sysid, on the same MuJoCo-generated
 NAME = "identification"
 PACKAGES = ("bundledyn", "jax", "jaxlib", "equinox", "diffrax", "numpy", "mujoco")
 LEVELS = (0.0, 0.001, 0.01)
-SYSID_ITERS = 40
+SYSID_ITERS = 200  # mujoco.sysid's own default
 
 
 def _parser():

@@ -12,23 +12,43 @@ class Bundledyn:
     def __init__(self, case, P_nominal):
         import jax.numpy as jnp
 
+        from bundledyn import identify
+
+        self.case = case
+        self.truth = truth_system(case)
+        self.index = [self.truth.names.index(b) for b in case.bodies]
+        self.parameters = self._parameters(P_nominal)
+        if case.gauge == "mass":
+            mass = float(jnp.sum(self.truth.pseudo_inertias()[:, 3, 3]))
+            self.gauge = identify.KnownMass(mass)
+        else:
+            self.gauge = identify.MeasuredInputs()
+
+    def _parameters(self, P_fitted):
+        """The fitted bodies free, at the pseudo-inertias `P_fitted` `(k, 4, 4)`."""
+        import jax.numpy as jnp
+
         import bundledyn as bd
         from bundledyn import identify
 
-        truth = truth_system(case)
-        index = [truth.names.index(b) for b in case.bodies]
-        P = truth.pseudo_inertias().at[jnp.array(index)].set(jnp.asarray(P_nominal))
-        nominal = truth.with_pseudo_inertias(P)
-        if case.floating:
-            scene = bd.Scene(nominal)
+        P = self.truth.pseudo_inertias().at[jnp.array(self.index)].set(jnp.asarray(P_fitted))
+        system = self.truth.with_pseudo_inertias(P)
+        if self.case.floating:
+            scene = bd.Scene(system)
         else:
-            scene = bd.Scene(nominal, [bd.Gravity()], base=bd.PrescribedBase.fixed())
-        self.index = index
-        self.parameters = identify.Parameters(scene, bodies=case.bodies)
-        if case.gauge == "mass":
-            self.gauge = identify.KnownMass(float(jnp.sum(truth.pseudo_inertias()[:, 3, 3])))
-        else:
-            self.gauge = identify.MeasuredInputs()
+            scene = bd.Scene(system, [bd.Gravity()], base=bd.PrescribedBase.fixed())
+        return identify.Parameters(scene, bodies=self.case.bodies)
+
+    def cost_at(self, record, P) -> float:
+        """The fit's merit ½‖r‖² + ½‖c‖² with the fitted bodies at `P`, the windows started
+        from the measured states (its first cost, without a warm start)."""
+        from bundledyn import identify
+
+        result = identify.fit(
+            self._parameters(P), record.measurements, inputs=record.inputs, gauge=self.gauge,
+            warm_start=False, max_steps=1,
+        )  # fmt: skip
+        return float(result.costs[0])
 
     def fit(self, record):
         import numpy as np

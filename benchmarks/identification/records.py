@@ -1,9 +1,13 @@
 """MuJoCo's records of the data sets, with noise, in both fitters' layouts; the unseen
 motion and how well a fitted model predicts it.
 
-MuJoCo simulates each case (RK4 at 0.2 ms, motors set at every step from a smooth torque
-signal), recorded at 100 Hz; Gaussian noise of a given fraction of each channel's spread
-is added in bundledyn's coordinates (the recipe of `tests/test_identify_mujoco.py`) and the
+The torques are a log at 100 Hz (samples of a smooth signal); the motors follow the log
+read linearly between its samples, each 0.2 ms step of MuJoCo's RK4 holding the value at
+the step's middle (the same impulse as the linear signal over the step, to O(dt³)). So both
+fitters pose the problem that made the record: bundledyn reads the log linearly
+(`Inputs(interpolation="linear")`), mujoco.sysid is given the held value of every step.
+MuJoCo records at 100 Hz; Gaussian noise of a given fraction of each channel's spread is
+added in bundledyn's coordinates (the recipe of `tests/test_identify_mujoco.py`) and the
 same noisy record is handed to mujoco.sysid in MuJoCo's layout.
 """
 
@@ -12,7 +16,24 @@ import warnings
 
 import numpy as np
 
-from benchmarks.identification.cases import RATE, Case, initial_velocity, torque
+from benchmarks.identification.cases import RATE, TIMESTEP, Case, initial_velocity, torque
+
+
+def torque_log(case: Case, seed, t1):
+    """The torque log of `seed` at 100 Hz, 0.2 s past `t1`: `(times, torques)`."""
+    times = np.arange(int(round((t1 + 0.2) * RATE)) + 1) / RATE
+    return times, torque(case, times, seed)
+
+
+def held_torques(case: Case, seed, t1, timestep):
+    """What the motors hold over each MuJoCo step of `[0, t1]`: the log read linearly at
+    the step's middle. `(step start times, torques)`."""
+    times, log = torque_log(case, seed, t1)
+    starts = np.arange(int(round(t1 / timestep)) + 1) * timestep
+    held = np.zeros((len(starts), log.shape[1]))
+    for i in range(log.shape[1]):
+        held[:, i] = np.interp(starts + timestep / 2, times, log[:, i])
+    return starts, held
 
 
 def mujoco_record(case: Case, seed, t1, model=None):
@@ -23,13 +44,16 @@ def mujoco_record(case: Case, seed, t1, model=None):
     data = mujoco.MjData(model)
     data.qpos[:], data.qvel[:] = initial_velocity(case, model, seed)
     every, n = int(round(1 / (RATE * model.opt.timestep))), int(round(t1 * RATE)) + 1
+    _, held = held_torques(case, seed, t1, model.opt.timestep)
     qpos, qvel = np.zeros((n, model.nq)), np.zeros((n, model.nv))
+    step = 0
     for k in range(n):
         qpos[k], qvel[k] = data.qpos, data.qvel
         for _ in range(every if k < n - 1 else 0):
             if model.nu:
-                data.ctrl[:] = torque(case, data.time, seed)
+                data.ctrl[:] = held[step]
             mujoco.mj_step(model, data)
+            step += 1
     return np.arange(n) / RATE, qpos, qvel
 
 
@@ -60,8 +84,10 @@ class Record:
     ts: np.ndarray
     qpos: np.ndarray  # the same noisy record in MuJoCo's layout
     qvel: np.ndarray
-    torque_ts: np.ndarray  # the torque log (100 Hz), both methods get it
+    torque_ts: np.ndarray  # the torque log (100 Hz): bundledyn reads it linearly
     torques: np.ndarray
+    step_ts: np.ndarray  # what each MuJoCo step held: mujoco.sysid's controls
+    step_torques: np.ndarray
     sigmas: dict  # each channel group's noise level (of the weights when level = 0)
 
 
@@ -76,11 +102,13 @@ def noisy_record(case: Case, seed: int, level: float) -> Record:
 
     truth = truth_system(case)
     ts, qpos, qvel = mujoco_record(case, seed, case.t1)
-    torque_ts = np.arange(int(round((case.t1 + 0.2) * RATE)) + 1) / RATE
-    torques = torque(case, torque_ts, seed)
+    torque_ts, torques = torque_log(case, seed, case.t1)
+    steps = held_torques(case, seed, case.t1, TIMESTEP)
     inputs = None
     if torques.shape[-1]:
-        inputs = identify.Inputs(jnp.asarray(torque_ts), joint_forces=jnp.asarray(torques))
+        inputs = identify.Inputs(
+            jnp.asarray(torque_ts), joint_forces=jnp.asarray(torques), interpolation="linear"
+        )
     rng = np.random.default_rng(1000 + seed)
     weight = level if level > 0 else 1e-3
     n = len(ts)
@@ -94,7 +122,7 @@ def noisy_record(case: Case, seed: int, level: float) -> Record:
             jnp.asarray(ts), q=jnp.asarray(q), qdot=jnp.asarray(qdot), noise=noise
         )
         return Record(case, seed, level, measurements, inputs, ts, q, qdot, torque_ts,
-                      torques, sigmas)  # fmt: skip
+                      torques, *steps, sigmas)  # fmt: skip
     clean = identify.Measurements.from_mujoco(truth, ts, qpos, qvel, noise=identify.Noise())
     spreads = {
         "rotation": 1.0,
@@ -130,7 +158,7 @@ def noisy_record(case: Case, seed: int, level: float) -> Record:
     flip = np.sum(noisy_qpos[:, 3:7] * qpos[:, 3:7], axis=1) < 0
     noisy_qpos[flip, 3:7] *= -1
     return Record(case, seed, level, measurements, inputs, ts, noisy_qpos, noisy_qvel,
-                  torque_ts, torques, sigmas)  # fmt: skip
+                  torque_ts, torques, *steps, sigmas)  # fmt: skip
 
 
 def held_out(case: Case, seed: int):

@@ -2,11 +2,12 @@
 
 Its documented path, on the same noisy records as bundledyn: each fitted body an
 `InertiaType.Pseudo` parameter (the same log-Cholesky coordinates of the pseudo-inertia),
-the nominal MJCF (same start), the measured qpos and qvel as state signals, the torque log
-as controls, `build_residual_fn` (single shooting with MuJoCo's rollout, residuals scaled
-per channel by the measured data's magnitude) and `optimize(optimizer="mujoco")`
-(`mujoco.minimize.least_squares`, finite-difference Jacobians), then
-`calculate_intervals` at the optimum.
+the nominal MJCF (same start), the measured qpos and qvel as state signals, the controls
+each MuJoCo step held, `build_residual_fn` (MuJoCo's rollouts, residuals scaled per channel
+by the measured data's magnitude) over the whole record (single shooting) or over pieces
+each started from its measured first state (its multiple-shooting option), and
+`optimize(optimizer="mujoco")` (`mujoco.minimize.least_squares`, finite-difference
+Jacobians) at its default iteration cap, then `calculate_intervals` at the optimum.
 
 Three departures from the defaults, each needed or to its advantage:
 
@@ -22,6 +23,7 @@ Three departures from the defaults, each needed or to its advantage:
 
 import contextlib
 import io
+import itertools
 import re
 import time
 
@@ -94,29 +96,46 @@ def _signals(case, model):
     return [f"{j}_qpos" for j in joints] + [f"{j}_qvel" for j in joints]
 
 
-def fit(case, record, nominal_spec, max_iters):
-    """Fit the record with mujoco.sysid from `nominal_spec`. Returns a dict: the fitted
-    model, seconds, rollouts, iterations, status, and the confidence intervals."""
+def _sequences(case, record, spec, model, segments: int):
+    """The record as mujoco.sysid's sequences: the whole record (single shooting) or
+    `segments` consecutive pieces, each rolled out from its measured first state (its
+    multiple-shooting option), times counted from each piece's start. The controls are
+    what each MuJoCo step held (`records.held_torques`); mujoco.sysid resamples them onto
+    its steps, which they already are."""
     from mujoco import sysid
 
-    begin = time.perf_counter()
-    spec = nominal_spec
+    n = len(record.ts)
+    bounds = np.linspace(0, n - 1, segments + 1).round().astype(int)
+    signals = _signals(case, model)
+    initial, control, measured, names = [], [], [], []
+    for k, (first, last) in enumerate(itertools.pairwise(bounds)):
+        t0, t1 = record.ts[first], record.ts[last]
+        steps = (record.step_ts >= t0 - 1e-9) & (record.step_ts <= t1 + 1e-9)
+        control.append(sysid.TimeSeries.from_control_names(
+            record.step_ts[steps] - t0,
+            record.step_torques[steps].reshape(int(steps.sum()), -1), model,
+        ))  # fmt: skip
+        rows = slice(first, last + 1)
+        measured.append(sysid.TimeSeries.from_names(
+            record.ts[rows] - t0, np.hstack([record.qpos[rows], record.qvel[rows]]), model,
+            names=signals,
+        ))  # fmt: skip
+        initial.append(sysid.create_initial_state(model, record.qpos[first], record.qvel[first]))
+        names.append(f"record_{k}")
+    with contextlib.redirect_stderr(io.StringIO()):  # the missing-sensors warning
+        return sysid.ModelSequences(
+            case.name, spec, names, initial, control, measured, allow_missing_sensors=True
+        )
+
+
+def _problem(case, record, spec, segments: int):
+    """mujoco.sysid's parameters (at `spec`'s values) and residual function for the record,
+    with a count of its rollouts."""
+    from mujoco import sysid
+
     model = spec.compile()
     params = _parameters(case, spec, model)
-    x0 = params.as_vector()
-    ts = record.ts
-    inside = record.torque_ts <= ts[-1] + 1e-9  # the torque log over the record
-    control = sysid.TimeSeries.from_control_names(
-        record.torque_ts[inside], record.torques[inside].reshape(int(inside.sum()), -1), model
-    )
-    measured = sysid.TimeSeries.from_names(
-        ts, np.hstack([record.qpos, record.qvel]), model, names=_signals(case, model)
-    )
-    initial = sysid.create_initial_state(model, record.qpos[0], record.qvel[0])
-    with contextlib.redirect_stderr(io.StringIO()):  # the missing-sensors warning
-        sequences = sysid.ModelSequences(
-            case.name, spec, "record", initial, control, measured, allow_missing_sensors=True
-        )
+    sequences = _sequences(case, record, spec, model, segments)
     residual_fn = sysid.build_residual_fn(models_sequences=[sequences])
     rollouts = [0]
 
@@ -124,6 +143,28 @@ def fit(case, record, nominal_spec, max_iters):
         rollouts[0] += 1 if np.ndim(x) == 1 else np.shape(x)[1]
         return residual_fn(x, p, **kwargs)
 
+    return params, counted, rollouts
+
+
+def cost_at(case, record, spec, segments: int) -> float:
+    """mujoco.sysid's cost ½‖r‖² at `spec`'s own parameters (the truth's, for the check
+    that it poses the problem that made the record)."""
+    params, residual_fn, _ = _problem(case, record, spec, segments)
+    residuals, _, _ = residual_fn(params.as_vector(), params)
+    r = np.concatenate(residuals)
+    return 0.5 * float(r @ r)
+
+
+def fit(case, record, nominal_spec, max_iters, segments: int = 1):
+    """Fit the record with mujoco.sysid from `nominal_spec`, by single shooting
+    (`segments = 1`) or over `segments` pieces. Returns a dict: the fitted model, seconds,
+    rollouts, iterations, status, and the confidence intervals."""
+    from mujoco import sysid
+
+    begin = time.perf_counter()
+    spec = nominal_spec
+    params, counted, rollouts = _problem(case, record, spec, segments)
+    x0 = params.as_vector()
     printed = io.StringIO()
     with contextlib.redirect_stdout(printed):
         fitted, result = sysid.optimize(
