@@ -13,6 +13,7 @@ child's parameter is regrouped into its parent's: `arm.M + hand.M` is the mass t
 the hand carry together. Each has its estimate and standard error by the delta method.
 """
 
+import functools
 from typing import NamedTuple
 
 import equinox as eqx
@@ -25,8 +26,10 @@ from ._parameters import Parameters
 __all__ = [
     "BaseParameter",
     "base_parameters",
+    "parameter_names",
     "standard_parameter_names",
     "standard_parameters",
+    "value_and_jacobian",
 ]
 
 _STANDARD = ("XX", "XY", "XZ", "YY", "YZ", "ZZ", "MX", "MY", "MZ", "M")
@@ -60,21 +63,28 @@ def standard_parameters(parameters: Parameters, theta):
     return jnp.concatenate([per_body.reshape(-1), *constants])
 
 
-def standard_parameter_names(parameters: Parameters) -> list[str]:
-    """The names of `standard_parameters`' entries: `body.XX`, …, `body.M`, then the joint
-    constants'."""
+def parameter_names(parameters: Parameters, quantities) -> list[str]:
+    """`body.quantity` for each free body and each of `quantities`, then the free joint
+    constants' names."""
     names = parameters.body_names
-    labels = [f"{names[b]}.{q}" for b in parameters.bodies for q in _STANDARD]
+    labels = [f"{names[b]}.{q}" for b in parameters.bodies for q in quantities]
     for name, value in parameters.joint_constant_values(parameters.initial()).items():
         size = int(np.size(value))
         labels += [name] if size == 1 else [f"{name}[{k}]" for k in range(size)]
     return labels
 
 
+def standard_parameter_names(parameters: Parameters) -> list[str]:
+    """The names of `standard_parameters`' entries: `body.XX`, …, `body.M`, then the joint
+    constants'."""
+    return parameter_names(parameters, _STANDARD)
+
+
 @eqx.filter_jit
-def _standard_and_jacobian(parameters: Parameters, theta):
-    standard = lambda t: standard_parameters(parameters, t)
-    return standard(theta), jax.jacfwd(standard)(theta)
+def value_and_jacobian(function, parameters: Parameters, theta):
+    r"""`function(parameters, theta)` and its Jacobian in $\theta$."""
+    at = functools.partial(function, parameters)
+    return at(theta), jax.jacfwd(at)(theta)
 
 
 def _sizes(standard, num_bodies: int):
@@ -136,7 +146,9 @@ def base_parameters(parameters: Parameters, theta, blind, covariance) -> tuple[B
     A tuple of `BaseParameter`, one per dimension of the standard parameters' space that
     $\theta$ reaches and no blind direction moves.
     """
-    standard, jacobian = (np.asarray(x) for x in _standard_and_jacobian(parameters, theta))
+    standard, jacobian = (
+        np.asarray(x) for x in value_and_jacobian(standard_parameters, parameters, theta)
+    )
     sizes = _sizes(standard, len(parameters.bodies))
     # In scaled standard parameters: the directions θ moves them along, and the blind ones.
     reached = jacobian / sizes[:, None]

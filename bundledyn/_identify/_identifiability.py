@@ -21,13 +21,17 @@ noise levels do not make the intervals lie.
 import functools
 from typing import NamedTuple
 
-import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
 
 from .._systems._pseudo_inertia import inertial_from_pseudo_inertia
-from ._base_parameters import BaseParameter, base_parameters
+from ._base_parameters import (
+    BaseParameter,
+    base_parameters,
+    parameter_names,
+    value_and_jacobian,
+)
 from ._parameters import Parameters
 from ._regrouping import named_directions
 
@@ -107,22 +111,6 @@ def physical_quantities(parameters: Parameters, theta):
     return jnp.concatenate([per_body, *constants])
 
 
-@eqx.filter_jit
-def _quantities_and_jacobian(parameters: Parameters, theta):
-    r"""`physical_quantities` at $\theta$ and their Jacobian in $\theta$."""
-    quantities = functools.partial(physical_quantities, parameters)
-    return quantities(theta), jax.jacfwd(quantities)(theta)
-
-
-def _quantity_names(parameters: Parameters):
-    names = parameters.body_names
-    labels = [f"{names[b]}.{q}" for b in parameters.bodies for q in _QUANTITIES]
-    for name, value in parameters.joint_constant_values(parameters.initial()).items():
-        size = int(np.size(value))
-        labels += [name] if size == 1 else [f"{name}[{k}]" for k in range(size)]
-    return labels
-
-
 def _describe(direction, parameters: Parameters, value, gradients, names):
     r"""A blind direction of $\theta$ as the physical quantities that move most along it
     (relative to their size: a centre by the body's radius of gyration, an inertia entry
@@ -190,9 +178,11 @@ def analyse(parameters: Parameters, theta, information, chi2: float, dof: int) -
     determined = ~blind
     inverse = np.where(determined, 1.0 / np.where(determined, eigenvalues, 1.0), 0.0)
     covariance = S[:, None] * ((vectors * inverse) @ vectors.T) * sigma2 * S[None, :]
-    names = _quantity_names(parameters)
+    names = parameter_names(parameters, _QUANTITIES)
     theta = jnp.asarray(theta)
-    values, gradients = (np.asarray(x) for x in _quantities_and_jacobian(parameters, theta))
+    values, gradients = (
+        np.asarray(x) for x in value_and_jacobian(physical_quantities, parameters, theta)
+    )
     scaled = gradients * S[None, :]
     blind_vectors = vectors[:, blind]
     share = np.linalg.norm(scaled @ blind_vectors, axis=1) / np.maximum(
