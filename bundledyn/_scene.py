@@ -13,6 +13,7 @@ from ._modes import AbstractMode, FloatingBase, Free, Prescribed, PrescribedBase
 from ._systems._base import AbstractSystem
 from ._systems._constrained import ConstrainedSystem, JointCoupling
 from ._systems._mujoco_import import (
+    WORLD,
     FixedTendon,
     ModelParts,
     model_gravity,
@@ -180,19 +181,26 @@ def model_effects(parts: ModelParts, *, passive: bool, gravity: bool) -> list[Ab
 
 def model_base(parts: ModelParts, *, section=0) -> PrescribedBase | None:
     """The base of an imported model as MuJoCo has it: held at the root's pose where the
-    model welds its root to the world (no joint on the root), else None (floating).
+    model welds its root to the world (no joint on the root), at the world's frame where
+    it attaches its root to the world by joints (the base is the world's stand-in), else
+    None (floating).
 
     **Raises:**
 
-    `ValueError` for a welded root with the section at another body, which would float.
+    `ValueError` for a held base with the section at another body, which would float.
     """
     if parts.root_pose is None:
         return None
     if section not in (0, parts.names[0]):
+        held = (
+            "attaches its root body to the world by joints, so the world"
+            if parts.names[0] == WORLD
+            else f"welds its root body '{parts.names[0]}' to the world (it has no joint), so "
+            "the root"
+        )
         raise ValueError(
-            f"the model welds its root body '{parts.names[0]}' to the world (it has no joint), "
-            "so the root is the scene's fixed base and the section frame: use section=0, or "
-            "put a <freejoint/> on the root to float the model."
+            f"the model {held} is the scene's fixed base and the section frame: use "
+            "section=0, or put a <freejoint/> on the root to float the model."
         )
     return PrescribedBase.fixed(parts.root_pose)
 

@@ -590,18 +590,68 @@ WELDED = """<mujoco><compiler angle="radian"/>
 </body></worldbody></mujoco>"""
 
 
-def test_a_welded_root_stays_fixed_and_moves_as_mujoco_moves_it():
-    """A root without a joint is welded to the world, as MuJoCo welds it: `Scene.from_mjcf`
-    holds the base at the root's pose, the shape block of the metric (with the rotor
-    inertia) is MuJoCo's mass matrix to 1e-12, and 1 s with the model's gravity and dampers
-    equals MuJoCo's RK4 at dt = 1e-4 to 1e-9 while the base does not move."""
-    model = mujoco.MjModel.from_xml_string(WELDED)
-    with pytest.warns(UserWarning, match="qpos0"):
-        scene = bundledyn.Scene.from_mjcf(WELDED, passive=True, gravity=True)
+# Roots attached to the world by joints, as dm_control's and gymnasium's planar and
+# fixed-base models attach theirs: a double pendulum hung by a hinge (rotor inertia, a
+# damper), a cart-pole on a slide (a spring with a rest position on the pole), a planar
+# walker whose torso moves by two slides and a hinge (MuJoCo's rootx, rootz, rooty) with
+# two legs, a spherical pendulum on a ball joint; gravity off the vertical in one.
+ATTACHED = {
+    "pendulum": """<mujoco><option gravity="0 0 -9.81" integrator="RK4" timestep="1e-4"/>
+<worldbody><body name="pole" pos="0 0 1" quat="0.9 0.1 0.2 0">
+<joint name="swing" type="hinge" axis="0 1 0" damping="0.1" armature="0.02"/>
+<inertial pos="0 0 -0.4" mass="1.2" fullinertia="0.05 0.06 0.02 0.001 0 0.002"/>
+<body name="tip" pos="0 0 -0.8"><joint name="tip" type="hinge" axis="1 0 0.2"/>
+<inertial pos="0 0.05 -0.1" mass="0.3" diaginertia="0.01 0.01 0.002"/></body>
+</body></worldbody></mujoco>""",
+    "cartpole": """<mujoco><option gravity="0.3 0 -9.81" integrator="RK4" timestep="1e-4"/>
+<worldbody><body name="cart" pos="0 0 0.5">
+<joint name="slider" type="slide" axis="1 0 0" damping="0.2"/>
+<inertial pos="0 0 0" mass="2" diaginertia="0.1 0.2 0.1"/>
+<body name="pole"><joint name="hinge" type="hinge" axis="0 1 0" stiffness="1" springref="0.1"/>
+<inertial pos="0 0 0.3" mass="0.4" diaginertia="0.02 0.02 0.001"/></body>
+</body></worldbody></mujoco>""",
+    "walker": """<mujoco><option gravity="0 0 -9.81" integrator="RK4" timestep="1e-4"/>
+<worldbody><body name="torso" pos="0 0 1.2">
+<joint name="rootx" type="slide" axis="1 0 0"/><joint name="rootz" type="slide" axis="0 0 1"/>
+<joint name="rooty" type="hinge" axis="0 1 0"/>
+<inertial pos="0 0 0.1" mass="3.5" diaginertia="0.1 0.12 0.05"/>
+<body name="thigh" pos="0 0 -0.2"><joint name="hip" type="hinge" axis="0 -1 0" damping="0.1"/>
+<inertial pos="0 0 -0.2" mass="1" diaginertia="0.02 0.02 0.004"/>
+<body name="leg" pos="0 0 -0.45"><joint name="knee" type="hinge" axis="0 -1 0"/>
+<inertial pos="0 0 -0.2" mass="0.6" diaginertia="0.01 0.01 0.002"/></body></body>
+<body name="other_thigh" pos="0 0 -0.2"><joint name="other_hip" type="hinge" axis="0 -1 0"/>
+<inertial pos="0.02 0 -0.2" mass="1" diaginertia="0.02 0.02 0.004"/></body>
+</body></worldbody></mujoco>""",
+    "spherical": """<mujoco><option gravity="0 0 -9.81" integrator="RK4" timestep="1e-4"/>
+<worldbody><body name="bob" pos="0.1 0 1"><joint name="pivot" type="ball"/>
+<inertial pos="0.1 0.05 -0.5" mass="0.8" diaginertia="0.02 0.03 0.01"/></body>
+</worldbody></mujoco>""",
+}
+
+
+def _held_base_cases():
+    """The welded root and the attached ones: the model, and where the base is held."""
+    cases = [pytest.param(WELDED, "root", id="welded")]
+    return cases + [pytest.param(xml, "world", id=name) for name, xml in ATTACHED.items()]
+
+
+@pytest.mark.parametrize("xml, held", _held_base_cases())
+def test_a_held_root_moves_as_mujoco_moves_it(xml, held):
+    """MuJoCo's fixed bases: a root without a joint is welded to the world, and a root
+    attached to the world by hinges, slides or a ball joint hangs from it. `Scene.from_mjcf`
+    holds the base (the root at its pose; the world's stand-in at the world's frame), the
+    shape block of the metric (with the rotor inertia) is MuJoCo's mass matrix to 1e-12,
+    and 1 s with the model's gravity, springs and dampers equals MuJoCo's RK4 at
+    dt = 1e-4 to 1e-9 while the base does not move."""
+    model = mujoco.MjModel.from_xml_string(xml)
+    with warnings.catch_warnings():
+        warnings.filterwarnings("ignore", "joint.*non-zero reference", UserWarning)
+        scene = bundledyn.Scene.from_mjcf(xml, passive=True, gravity=True)
     assert isinstance(scene.mode, bundledyn.PrescribedBaseMode)
     data = mujoco.MjData(model)
     data.qpos[:], data.qvel[:] = random_state(model, np.random.default_rng(3), angle=0.5)
-    root = mujoco_poses(model, data, data.qpos.copy())[1]  # where MuJoCo holds the root
+    base = mujoco_poses(model, data, data.qpos.copy())[1] if held == "root" else np.eye(4)
+    assert scene.system.names[0] == ("world" if held == "world" else model.body(1).name)
     system = scene.system
     start = bundledyn.state_from_mujoco(
         system, data.qpos, data.qvel, qpos0=model.qpos0, free_root=False
@@ -623,13 +673,26 @@ def test_a_welded_root_stays_fixed_and_moves_as_mujoco_moves_it():
         mujoco.mj_step(model, data)
     saveat = diffrax.SaveAt(ts=jnp.linspace(0.0, 1.0, 5))
     traj = bundledyn.simulate(scene, start, 1.0, saveat=saveat, rtol=1e-12, atol=1e-12)
-    np.testing.assert_allclose(traj.g, np.broadcast_to(root, traj.g.shape), atol=1e-15)
+    np.testing.assert_allclose(traj.g, np.broadcast_to(base, traj.g.shape), atol=1e-15)
     end = bundledyn.State(traj.g[-1], traj.q[-1], traj.xi[-1], traj.qdot[-1])
     qpos, qvel = bundledyn.state_to_mujoco(system, end, qpos0=model.qpos0, free_root=False)
     np.testing.assert_allclose(qpos, same_quaternions(model, qpos, data.qpos), atol=1e-9)
     np.testing.assert_allclose(qvel, data.qvel, atol=1e-9)
     with pytest.raises(ValueError, match="freejoint"):
-        _quiet(partial(bundledyn.Scene.from_mjcf, section="arm"), WELDED)
+        _quiet(partial(bundledyn.Scene.from_mjcf, section=system.names[1]), xml)
+
+
+def test_identification_frees_the_bodies_whose_inertia_enters_the_equations():
+    """On a held base, the default free bodies leave out the base (the world's stand-in,
+    or a welded root), whose inertia enters no equation; a floating base is fitted too."""
+    from bundledyn import identify
+
+    attached = _quiet(partial(bundledyn.Scene.from_mjcf, gravity=True), ATTACHED["walker"])
+    assert identify.Parameters(attached).bodies == (1, 2, 3, 4)
+    welded = _quiet(bundledyn.Scene.from_mjcf, WELDED)
+    assert identify.Parameters(welded).bodies == (1, 2, 3)
+    floating = bundledyn.Scene(welded.system)
+    assert identify.Parameters(floating).bodies == (0, 1, 2, 3)
 
 
 def test_a_model_with_gravity_turned_off_falls_not():
@@ -802,8 +865,8 @@ def _xml(worldbody, extra=""):
             "root body 'a' has no mass",
         ),
         (
-            _xml(f"<body name='pole'><joint name='pin'/>{BODY}</body>"),
-            r"root body 'pole' is attached to the world by 'pin' \(hinge\)",
+            _xml(f"<body name='pole'><joint name='pin'/><body name='c'>{BODY}</body></body>"),
+            r"body 'pole' carries joint\(s\) 'pin' \(hinge\) but has no mass",
         ),
         (_xml("<geom size='1'/>"), "no body under the worldbody"),
     ],

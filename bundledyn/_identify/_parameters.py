@@ -14,6 +14,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from .._effects import ShapeDamper, ShapeSpring
+from .._modes import PrescribedBase
 from .._scene import Scene
 from .._systems._base import AbstractInertialSystem
 from .._systems._multibody import AbstractMultibody, Multibody
@@ -51,6 +52,14 @@ def _body_names(system) -> tuple[str, ...]:
     return ("body",)
 
 
+def _held_body(scene: Scene) -> int | None:
+    """The body of a tree whose motion a `PrescribedBase` gives (its section body): its
+    inertia enters no equation. None for a floating base, or a single body."""
+    if isinstance(scene.base, PrescribedBase) and isinstance(scene.system, AbstractMultibody):
+        return getattr(scene.system, "section", 0)
+    return None
+
+
 def _effect_index(scene: Scene, kind) -> int:
     matches = [i for i, e in enumerate(scene.effects) if isinstance(e, kind)]
     if not matches:
@@ -66,7 +75,9 @@ class Parameters(eqx.Module):
     - `scene`: the nominal scene: its system (an `AbstractInertialSystem`) and effects give
       the structure, the known values and the starting point.
     - `bodies`: the bodies whose inertial parameters are free, by index or name (static;
-      default all). The others keep the nominal values.
+      default all whose inertia enters the equations: for a tree on a `PrescribedBase`,
+      all but the section body, whose motion is given, e.g. an imported model's world
+      stand-in). The others keep the nominal values.
     - `joint_constants`: which joint constants are free (static): `"stiffness"` (of the
       scene's first `ShapeSpring`), `"damping"` (of its first `ShapeDamper`) and
       `"armature"` (the `Multibody`'s rotor inertia); each must be positive in the nominal
@@ -85,7 +96,9 @@ class Parameters(eqx.Module):
                 "fits RigidBody, Multibody and AffineBody systems."
             )
         names = _body_names(system)
-        chosen = range(len(names)) if bodies is None else bodies
+        held = _held_body(scene)
+        moving = [b for b in range(len(names)) if b != held]
+        chosen = moving if bodies is None else bodies
         indices = tuple(names.index(b) if isinstance(b, str) else int(b) for b in chosen)
         for b in indices:
             if not 0 <= b < len(names):

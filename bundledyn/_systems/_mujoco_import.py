@@ -4,14 +4,19 @@ The importers read a compiled `mujoco.MjModel` (so every MJCF default, `childcla
 `inertiafromgeom`, `fullinertia`, angle unit, `ref` … is resolved exactly as MuJoCo
 resolves it) and build a `Multibody`:
 
-- **The tree.** The worldbody must hold exactly one body, the *root*; it becomes the
-  base (body 0) and its frame is the section frame. The root may carry a free joint or no
-  joint at all. MuJoCo welds a root without a joint to the world, and so does
-  `Scene.from_mjcf` (and a scene file or `bundledyn.load_scene` of the model): its base is
-  held at the root's pose (`PrescribedBase.fixed`, `ModelParts.root_pose`); the tree alone
-  (`Multibody.from_mjcf`) is a system any scene may float. Put a `<freejoint/>` on the
-  root to float it in MuJoCo and in bundledyn alike. Links follow MuJoCo's body order, so
-  $q$ and $\dot q$ follow MuJoCo's joint order.
+- **The tree.** The worldbody must hold exactly one body, the *root*. A root with a free
+  joint becomes the base (body 0) and its frame the section frame. MuJoCo welds a root
+  without a joint to the world, and so does `Scene.from_mjcf` (and a scene file or
+  `bundledyn.load_scene` of the model): the root is the base, held at its pose
+  (`PrescribedBase.fixed`, `ModelParts.root_pose`); the tree alone (`Multibody.from_mjcf`)
+  is a system any scene may float. Put a `<freejoint/>` on the root to float it in MuJoCo
+  and in bundledyn alike. A root attached to the world by hinges, slides or a ball joint
+  (a pendulum, a cart-pole, a planar walker's root slides and hinge) hangs from the world:
+  the base is a stand-in for the world (body `world`, unit mass and inertia at the origin,
+  `world_stand_in`) that `Scene.from_mjcf` holds fixed at the world's frame, so its inertia
+  enters no equation, and the root's joints are the first shape coordinates, as in
+  MuJoCo's `qpos`. Links follow MuJoCo's body order, so $q$ and $\dot q$ follow MuJoCo's
+  joint order.
 - **Joints** (axes and anchors in the child frame, MuJoCo's `jnt_axis` / `jnt_pos`):
   hinge → `Revolute`, slide → `Prismatic`, ball → `Spherical`; two hinges on one body whose
   axes intersect and are not parallel → `Universal` (anchored at the intersection); any
@@ -31,7 +36,7 @@ resolves it) and build a `Multibody`:
   non-zero refs (importing one warns).
 
 Not supported (`ValueError` naming the element and the fix): several bodies under the
-worldbody, a joint other than a free joint on the root, free joints below the root
+worldbody, free joints below the root
 (MuJoCo itself rejects those), equality constraints other than joint couplings, spatial
 tendons, the armature of
 tendons, bodies without mass that carry joints, and a root body without mass; when the
@@ -67,12 +72,14 @@ from ._link import Link
 from ._rigid_body import RigidBody
 
 __all__ = [
+    "WORLD",
     "FixedTendon",
     "ModelParts",
     "compiled_mjcf",
     "parts_from_mjcf",
     "parts_from_mjmodel",
     "parts_from_urdf",
+    "world_stand_in",
 ]
 
 # MuJoCo's mjtJoint values.
@@ -115,8 +122,9 @@ class ModelParts(NamedTuple):
     `(dependent, independent, polycoef)` of shape coordinates (`JointCoupling`'s; with
     $q = $ `qpos - qpos0` MuJoCo's $y - y_0 = \sum_k a_k (x - x_0)^k$ reads
     $q_y = \sum_k a_k q_x^k$; `independent` None where the joint is held), and the
-    `root_pose` `(4, 4)` in the world where MuJoCo welds the root to it (a root without a
-    joint), None for a free root.
+    `root_pose` `(4, 4)` where the base is held: the root's pose where MuJoCo welds the
+    root to the world (a root without a joint), the identity where the root hangs from
+    the world by joints (the base is then `world_stand_in()`), None for a free root.
     """
 
     base: RigidBody
@@ -246,6 +254,17 @@ def _compile_urdf(mujoco, path):
         raise ValueError(f"MuJoCo could not compile the URDF file {path!r}: {e}") from e
 
 
+# The base of a model whose root is attached to the world by joints: MuJoCo's name of the
+# world body, which no other body may take.
+WORLD = "world"
+
+
+def world_stand_in() -> RigidBody:
+    """The world, as the base of a model whose root hangs from it by joints: a unit body
+    at the world's origin. The scene holds it fixed, so its inertia enters no equation."""
+    return RigidBody(1.0, np.zeros(3), np.eye(3))
+
+
 def _quat_to_matrix(quat):
     """Rotation matrix of a (w, x, y, z) quaternion, as NumPy (`lie.rotation_from_quaternion`)."""
     return np.asarray(lie.rotation_from_quaternion(jnp.asarray(quat, dtype=float)))
@@ -354,15 +373,6 @@ def _check_unsupported(model, passive: bool):
                 "below the root: only the root body may float freely. Remove the free joint "
                 "or attach the body by other joints."
             )
-    root_joints = [int(model.body_jntadr[root]) + k for k in range(model.body_jntnum[root])]
-    if root_joints and not (len(root_joints) == 1 and int(model.jnt_type[root_joints[0]]) == _FREE):
-        labels = ", ".join(_joint_label(model, j) for j in root_joints)
-        raise ValueError(
-            f"the root body '{_name(model, 'body', root)}' is attached to the world by "
-            f"{labels}; bundledyn floats the root body, so these joints would be lost. "
-            "Give the root a free joint (or no joint), or add a root body with mass and no "
-            "joint and hang this body from it by these joints."
-        )
     return root
 
 
@@ -505,6 +515,11 @@ def parts_from_mjmodel(model, *, passive: bool = False) -> ModelParts:
     The `ModelParts`.
     """
     root = _check_unsupported(model, passive)
+    # A root attached to the world by joints (not a free joint) hangs from the world, which
+    # becomes the base: held fixed, it enters no equation of the shape, so any mass serves.
+    attached = (
+        bool(model.body_jntnum[root]) and int(model.jnt_type[model.body_jntadr[root]]) != _FREE
+    )
 
     def rigid_body(b):
         name = _name(model, "body", b)
@@ -515,21 +530,27 @@ def parts_from_mjmodel(model, *, passive: bool = False) -> ModelParts:
         except ValueError as e:
             raise ValueError(f"body '{name}': {e}") from e
 
-    if model.body_mass[root] < _MINVAL:
-        raise ValueError(
-            f"the root body '{_name(model, 'body', root)}' has no mass; it becomes bundledyn's "
-            "floating base, which must be a rigid body with mass. Give it an <inertial> "
-            "(or geoms with mass), or remove it so that its child is the root."
+    if attached:
+        base, names, index, first = world_stand_in(), [WORLD], {0: 0}, root
+    else:
+        if model.body_mass[root] < _MINVAL:
+            raise ValueError(
+                f"the root body '{_name(model, 'body', root)}' has no mass; it becomes "
+                "bundledyn's floating base, which must be a rigid body with mass. Give it an "
+                "<inertial> (or geoms with mass), or remove it so that its child is the root."
+            )
+        base, names, index, first = (
+            rigid_body(root),
+            [_name(model, "body", root)],
+            {root: 0},
+            root + 1,
         )
-    base = rigid_body(root)
-    names = [_name(model, "body", root)]
-    index = {root: 0}  # MuJoCo body -> bundledyn body
     welded = {}  # MuJoCo body welded away -> (bundledyn body, its pose in that body)
     links = []
     refs = []
     armature, damping, stiffness, rest = [], [], [], []
     coordinate = {}  # hinge or slide joint -> its shape coordinate
-    for b in range(root + 1, model.nbody):
+    for b in range(first, model.nbody):
         p = int(model.body_parentid[b])
         local = _pose_np(model.body_pos[b], model.body_quat[b])
         if p in index:
@@ -589,8 +610,18 @@ def parts_from_mjmodel(model, *, passive: bool = False) -> ModelParts:
         stiffness=np.array(stiffness, dtype=float), spring_rest=np.array(rest, dtype=float),
         tendons=_fixed_tendons(model, coordinate, len(armature)), ignored=tuple(ignored),
         couplings=_couplings(model, coordinate),
-        root_pose=None if model.body_jntnum[root] else _pose_np(model.body_pos[root], model.body_quat[root]),
+        root_pose=_root_pose(model, root, attached),
     )  # fmt: skip
+
+
+def _root_pose(model, root: int, attached: bool) -> np.ndarray | None:
+    """Where the base is held: the world's frame for a root attached by joints, the root's
+    pose for a welded one (no joint), None (floating) for a free root."""
+    if attached:
+        return np.eye(4)
+    if model.body_jntnum[root]:
+        return None
+    return _pose_np(model.body_pos[root], model.body_quat[root])
 
 
 def _couplings(model, coordinate: dict[int, int]):
