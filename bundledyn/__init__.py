@@ -146,6 +146,7 @@ from ._systems._mujoco_import import FixedTendon, ModelParts, parts_from_mjcf, p
 from ._systems._mujoco_state import state_from_mujoco, state_to_mujoco
 from ._systems._multibody import AbstractMultibody, Multibody, Resectioned
 from ._systems._rigid_body import RigidBody, spatial_inertia
+from ._tendons import SitePath, TendonDamper, TendonSpring
 from ._tensorial import (
     AbstractTensorialRKMK,
     AbstractTensorialSystem,
@@ -265,6 +266,9 @@ __all__ = [
     "SceneFileError",
     "SceneTerm",
     "ShapeDamper",
+    "SitePath",
+    "TendonDamper",
+    "TendonSpring",
     "ShapeForce",
     "ShapePotential",
     "ShapeSpring",

@@ -279,14 +279,14 @@ class BodywiseGravityGradient(AbstractCentralGravity):
         self.centre = jnp.asarray(centre, dtype=float)
 
     def mass_elements(self, system, g, q):
-        tree = _require_tree(system, "BodywiseGravityGradient")
+        tree = require_tree(system, "BodywiseGravityGradient")
         poses = g @ tree.body_poses(q)
         R = poses[:, :3, :3]
         c = poses[:, :3, 3] + jnp.einsum("nij,nj->ni", R, tree.com)
         return tree.mass, c, jnp.einsum("nij,njk,nlk->nil", R, tree.inertia, R)
 
 
-def _require_tree(system, what) -> AbstractMultibody:
+def require_tree(system, what) -> AbstractMultibody:
     """`system` itself, once it is known to be a tree of bodies.
 
     **Arguments:**
@@ -409,7 +409,7 @@ class ExternalWrench(AbstractEffect):
         w = self.fn(kin.t, kin.g, kin.q, kin.xi, kin.qdot)
         if self.body is None:
             return w, jnp.zeros_like(kin.q)
-        tree = _require_tree(system, f"ExternalWrench(body={self.body})")
+        tree = require_tree(system, f"ExternalWrench(body={self.body})")
         r, Jhat = tree.velocity_jacobians(kin.q)
         # The body twist is Ad_{r⁻¹} Ĵ [ξ; q̇], so the wrench's virtual power gives Ĵᵀ Ad_{r⁻¹}ᵀ w.
         generalized = Jhat[self.body].T @ lie.Ad(lie.se3_inv(r[self.body])).T @ w

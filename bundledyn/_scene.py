@@ -21,6 +21,7 @@ from ._systems._mujoco_import import (
     parts_from_urdf,
 )
 from ._systems._multibody import Multibody
+from ._tendons import SitePath, TendonDamper, TendonSpring
 
 
 class Scene(eqx.Module):
@@ -99,9 +100,10 @@ class Scene(eqx.Module):
         - `passive`: add MuJoCo's linear passive forces: the hinges' and slides' `damping`
           and the fixed tendons' `damping` as one `ShapeDamper` ($-b\,\dot q$ per joint,
           $-b\,c\,c^T\dot q$ per tendon of length $c^T q + L_0$), the joints' `stiffness`
-          about `springref` as a `ShapeSpring` ($-k\,(q - q_{\rm spring})$) and each
+          about `springref` as a `ShapeSpring` ($-k\,(q - q_{\rm spring})$) and each fixed
           tendon's `stiffness` about its `springlength` $L_s$ as a `ShapeSpring` of rank one
-          ($\tfrac12 k\,(c^T q + L_0 - L_s)^2$).
+          ($\tfrac12 k\,(c^T q + L_0 - L_s)^2$); a spatial tendon from site to site, its
+          `stiffness` and `damping` as a `TendonSpring` and a `TendonDamper`.
         - `gravity`: add the model's `<option gravity>` as a `Gravity` (none if it is zero,
           or if the model's `<flag gravity="disable">` turns it off, which warns).
 
@@ -207,7 +209,8 @@ def model_base(parts: ModelParts, *, section=0) -> PrescribedBase | None:
 
 def _passive_effects(parts: ModelParts) -> list[AbstractEffect]:
     """MuJoCo's linear passive forces of an imported model: one damper (diagonal unless a
-    tendon couples the coordinates), the joints' springs, and one spring per tendon."""
+    fixed tendon couples the coordinates), the joints' springs, one spring per fixed tendon,
+    and a spring and a damper along each spatial tendon."""
     effects: list[AbstractEffect] = []
     damped = [t for t in parts.tendons if t.damping != 0]
     if damped:
@@ -220,6 +223,12 @@ def _passive_effects(parts: ModelParts) -> list[AbstractEffect]:
     if np.any(parts.stiffness):
         effects.append(ShapeSpring(parts.stiffness, parts.spring_rest))
     effects += [_tendon_spring(t) for t in parts.tendons if t.stiffness != 0]
+    for tendon in parts.spatial_tendons:
+        path = SitePath(tendon.bodies, tendon.points)
+        if tendon.stiffness != 0:
+            effects.append(TendonSpring(path, tendon.stiffness, tendon.spring_length))
+        if tendon.damping != 0:
+            effects.append(TendonDamper(path, tendon.damping))
     return effects
 
 

@@ -22,7 +22,7 @@ LAYERS = (
     ("systems", {"_systems", "_solids", "_state", "_precision"}),
     ("geometry", {"_geometry", "_holonomy"}),
     ("dynamics", {"_dynamics", "_dynamics_vjp", "_nonholonomic"}),
-    ("scene", {"_effects", "_coupled_effects", "_frames", "_modes", "_scene"}),
+    ("scene", {"_effects", "_coupled_effects", "_tendons", "_frames", "_modes", "_scene"}),
     ("term", {"_term", "_reverse_term"}),
     ("integrators", {"_solver"}),
     ("tensorial", {"_tensorial"}),

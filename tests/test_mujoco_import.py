@@ -834,14 +834,6 @@ def _xml(worldbody, extra=""):
         ),
         (
             _xml(
-                f"<body name='a'><freejoint/>{BODY}<site name='s'/><body name='b'><joint/>"
-                f"{BODY}<site name='u' pos='0 0 1'/></body></body>",
-                "<tendon><spatial name='rope'><site site='s'/><site site='u'/></spatial></tendon>",
-            ),
-            "spatial tendon.*'rope'.*fixed tendons only",
-        ),
-        (
-            _xml(
                 f"<body name='a'><freejoint/>{BODY}<body name='b'><joint name='j'/>{BODY}"
                 "</body></body>",
                 "<tendon><fixed name='t' armature='0.1'><joint joint='j' coef='1'/></fixed>"
@@ -942,6 +934,98 @@ def test_ignored_elements_warn_once():
     assert "armature" not in message  # a hinge's rotor inertia is kept
 
 
+# Spatial tendons from site to site: on a floating arm, a muscle through three sites (one on
+# a massless frame welded into its body) with a spring and a damper, and a string with a
+# range only; on a pendulum hung by a hinge, a spring from a site of the world.
+SPATIAL = """<mujoco><option gravity="0 0 0" integrator="RK4" timestep="1e-4"/><worldbody>
+<body name="torso"><freejoint/><inertial pos="0 0 0" mass="2" diaginertia="0.1 0.12 0.08"/>
+<site name="s0" pos="0.05 0.1 0"/>
+<body name="upper" pos="0.3 0 0"><joint name="shoulder" type="hinge" axis="0 0 1"/>
+<inertial pos="0.15 0 0" mass="1" diaginertia="0.01 0.02 0.02"/>
+<body name="mount" pos="0.2 0 0.05"><site name="s1" pos="0 0.05 0"/></body>
+<body name="lower" pos="0.3 0 0"><joint name="elbow" type="hinge" axis="0 1 0.3"/>
+<inertial pos="0.1 0 0" mass="0.6" diaginertia="0.005 0.01 0.01"/>
+<site name="s2" pos="0.2 -0.03 0.02"/></body></body></body></worldbody>
+<tendon><spatial name="muscle" stiffness="40" damping="0.8" springlength="0.5">
+<site site="s0"/><site site="s1"/><site site="s2"/></spatial>
+<spatial name="string" limited="true" range="0 1"><site site="s0"/><site site="s2"/></spatial>
+</tendon></mujoco>"""
+TETHERED = """<mujoco><option gravity="0 0 -9.81" integrator="RK4" timestep="1e-4"/>
+<worldbody><site name="anchor" pos="0.3 0 1.2"/><body name="pole" pos="0 0 1">
+<joint name="pin" type="hinge" axis="0 1 0"/>
+<inertial pos="0 0 -0.3" mass="1" diaginertia="0.03 0.03 0.002"/><site name="tip" pos="0 0 -0.6"/>
+</body></worldbody><tendon><spatial name="tether" stiffness="15" damping="0.3" springlength="0.4">
+<site site="anchor"/><site site="tip"/></spatial></tendon></mujoco>"""
+
+
+@pytest.mark.parametrize("xml", ["SPATIAL", "TETHERED"])
+def test_a_spatial_tendons_spring_and_damper_are_mujocos_passive_force(xml):
+    r"""A spatial tendon's spring and damper give MuJoCo's passive force
+    $-J^T(k\,(L - L_s) + b\,\dot L)$ (`qfrc_spring + qfrc_damper`) at random states, to
+    rounding; on a floating tree, with no wrench on the base (the tendon is internal); the
+    tendon without passive force is left out with a warning."""
+    xml = {"SPATIAL": SPATIAL, "TETHERED": TETHERED}[xml]
+    model = mujoco.MjModel.from_xml_string(xml)
+    model.opt.gravity[:] = 0.0
+    with warnings.catch_warnings(record=True) as record:
+        warnings.simplefilter("always")
+        scene = bundledyn.Scene.from_mjcf(model, passive=True)
+    messages = " ".join(str(w.message) for w in record)
+    assert ("'string' (no passive force" in messages) == (xml == SPATIAL)
+    assert [type(e).__name__ for e in scene.effects] == ["TendonSpring", "TendonDamper"]
+    floating = model.jnt_type[0] == FREE
+    data = mujoco.MjData(model)
+    rng = np.random.default_rng(8)
+    for _ in range(3):
+        data.qpos[:], data.qvel[:] = random_state(model, rng, angle=1.0)
+        mujoco.mj_forward(model, data)
+        force = data.qfrc_spring + data.qfrc_damper
+        state = bundledyn.state_from_mujoco(
+            scene.system, data.qpos, data.qvel, free_root=bool(floating)
+        )
+        F, Q = scene.forces(bundledyn.Kinematics(0.0, state.g, state.q, state.xi, state.qdot))
+        shape = force[6:] if floating else force
+        assert np.max(np.abs(shape)) > 0.1
+        np.testing.assert_allclose(Q, shape, rtol=1e-12, atol=1e-13)
+        if floating:
+            np.testing.assert_allclose(force[:6], 0.0, atol=1e-13)
+            np.testing.assert_allclose(F, 0.0, atol=1e-13)
+
+
+def test_a_floating_tree_moves_with_its_spatial_tendon_as_mujoco_moves_it():
+    """1 s of the floating arm pulled by its muscle equals MuJoCo's RK4 at dt = 1e-4 to 1e-9."""
+    model = mujoco.MjModel.from_xml_string(SPATIAL)
+    model.opt.disableflags |= mujoco.mjtDisableBit.mjDSBL_CONSTRAINT  # the string's range
+    scene = _quiet(partial(bundledyn.Scene.from_mjcf, passive=True), SPATIAL)
+    data = mujoco.MjData(model)
+    data.qpos[:], data.qvel[:] = random_state(model, np.random.default_rng(9), angle=0.8)
+    start = bundledyn.state_from_mujoco(scene.system, data.qpos, data.qvel)
+    for _ in range(10_000):
+        mujoco.mj_step(model, data)
+    traj = bundledyn.simulate(scene, start, 1.0, rtol=1e-12, atol=1e-12)
+    end = bundledyn.State(traj.g[-1], traj.q[-1], traj.xi[-1], traj.qdot[-1])
+    qpos, qvel = bundledyn.state_to_mujoco(scene.system, end)
+    np.testing.assert_allclose(qpos, same_quaternions(model, qpos, data.qpos), atol=1e-9)
+    np.testing.assert_allclose(qvel, data.qvel, atol=1e-9)
+
+
+def test_what_a_spatial_tendon_cannot_carry_is_refused():
+    """With its passive forces asked for: a spring to a point of the world on a floating
+    tree (an external force), and a tendon wrapping around a geom."""
+    to_world = SPATIAL.replace('<site name="s0" pos="0.05 0.1 0"/>', "").replace(
+        "<worldbody>", '<worldbody><site name="s0" pos="0.05 0.1 0"/>'
+    )
+    with pytest.raises(ValueError, match="site 's0'.*on the world.*root floats"):
+        _quiet(partial(bundledyn.Scene.from_mjcf, passive=True), to_world)
+    wrapped = SPATIAL.replace(
+        '<site name="s1" pos="0 0.05 0"/>',
+        '<site name="s1" pos="0 0.05 0"/><geom name="knob" type="sphere" size="0.02"/>',
+    ).replace('<site site="s1"/>', '<geom geom="knob"/>')
+    with pytest.raises(ValueError, match="'muscle'.*wrap around geoms"):
+        _quiet(partial(bundledyn.Scene.from_mjcf, passive=True), wrapped)
+    assert _quiet(bundledyn.Multibody.from_mjcf, wrapped).shape_dim == 2  # forces not asked
+
+
 def test_a_fixed_tendon_without_passive_force_is_ignored_with_a_warning():
     """As in gymnasium's humanoid: fixed tendons that only couple joint ranges change no
     motion, so the model imports, saying what it left out."""
@@ -951,7 +1035,7 @@ def test_a_fixed_tendon_without_passive_force_is_ignored_with_a_warning():
         "<tendon><fixed name='t' limited='true' range='-1 1'><joint joint='j' coef='1'/>"
         "<joint joint='k' coef='-1'/></fixed></tendon>",
     )
-    with pytest.warns(UserWarning, match="fixed tendon.*'t'.*no passive force"):
+    with pytest.warns(UserWarning, match="tendon.*'t'.*no passive force"):
         assert multibody_from_mjcf(xml).shape_dim == 2
 
 

@@ -74,6 +74,7 @@ from ._rigid_body import RigidBody
 __all__ = [
     "WORLD",
     "FixedTendon",
+    "SpatialTendon",
     "ModelParts",
     "compiled_mjcf",
     "parts_from_mjcf",
@@ -86,6 +87,7 @@ __all__ = [
 _FREE, _BALL, _SLIDE, _HINGE = 0, 1, 2, 3
 _EQ_JOINT = 2  # mujoco.mjtEq.mjEQ_JOINT: a joint's position a polynomial of another's
 _WRAP_JOINT = 1  # mjtWrap.mjWRAP_JOINT: a fixed tendon's joint term
+_WRAP_SITE = 3  # mjtWrap.mjWRAP_SITE: a spatial tendon's site
 _JOINT_NAMES = {_FREE: "free", _BALL: "ball", _SLIDE: "slide", _HINGE: "hinge"}
 _MINVAL = 1e-15  # mjMINVAL: MuJoCo's threshold for "no mass"
 _DISABLE_GRAVITY = 1 << 7  # mjtDisableBit.mjDSBL_GRAVITY: `<flag gravity="disable">`
@@ -109,6 +111,23 @@ class FixedTendon(NamedTuple):
     spring_length: float
 
 
+class SpatialTendon(NamedTuple):
+    r"""A spatial tendon from site to site with a spring or a damper: MuJoCo's passive
+    force $-k\,(L - L_s) - b\,\dot L$ along it (`TendonSpring`, `TendonDamper`).
+
+    **Fields:** `name`, `bodies` (each site's bundledyn body, along the tendon), `points`
+    (each site in its body's frame, `(n, 3)`: a `SitePath`'s), `stiffness` ($k$),
+    `damping` ($b$), `spring_length` ($L_s$).
+    """
+
+    name: str
+    bodies: tuple[int, ...]
+    points: np.ndarray
+    stiffness: float
+    damping: float
+    spring_length: float
+
+
 class ModelParts(NamedTuple):
     r"""What an imported model's tree is made of, ready for `Multibody`.
 
@@ -117,7 +136,8 @@ class ModelParts(NamedTuple):
     `mujoco.MjModel` they were read from), per shape coordinate the hinges' and slides'
     `armature` (rotor inertia), `damping`, `stiffness` and `spring_rest` (`springref` as a
     shape coordinate, $q = $ `qpos - qpos0`), zero for a ball joint's coordinates, the
-    `tendons` with a spring or a damper (`FixedTendon`), `ignored` (what the import
+    fixed `tendons` with a spring or a damper (`FixedTendon`), the `spatial_tendons`
+    with one (`SpatialTendon`, read when the passive forces are asked for), `ignored` (what the import
     left out, as the warning lists it), the active joint equalities as `couplings`
     `(dependent, independent, polycoef)` of shape coordinates (`JointCoupling`'s; with
     $q = $ `qpos - qpos0` MuJoCo's $y - y_0 = \sum_k a_k (x - x_0)^k$ reads
@@ -139,6 +159,7 @@ class ModelParts(NamedTuple):
     ignored: tuple[str, ...]
     couplings: tuple[tuple[int, int | None, np.ndarray], ...] = ()
     root_pose: np.ndarray | None = None
+    spatial_tendons: tuple[SpatialTendon, ...] = ()
 
 
 def _import_mujoco():
@@ -337,12 +358,17 @@ def _check_unsupported(model, passive: bool):
             "those <equality> elements (model a weld by putting the bodies in one body, a loop "
             "by cutting it)."
         )
-    spatial = [i for i in range(model.ntendon) if not _fixed_tendon(model, i)]
-    if spatial:
+    wrapped = [
+        i for i in range(model.ntendon)
+        if not _fixed_tendon(model, i) and not _site_tendon(model, i)
+        and _tendon_is_passive(model, i)
+    ]  # fmt: skip
+    if wrapped and passive:
         raise ValueError(
-            f"the model has spatial tendon(s) {_names(model, 'tendon', spatial)}; bundledyn "
-            "maps fixed tendons only (lengths that are linear combinations of joint "
-            "coordinates). Remove those <spatial> elements and whatever refers to them."
+            f"spatial tendon(s) {_names(model, 'tendon', wrapped)} with a spring or a damper "
+            "wrap around geoms or pulleys; bundledyn's spatial tendons run straight between "
+            "sites. Take the wrapping geoms and pulleys out of the tendon, or its stiffness "
+            "and damping, or import without the passive forces."
         )
     rotors = np.flatnonzero(np.asarray(model.tendon_armature))
     if rotors.size:
@@ -389,6 +415,11 @@ def _fixed_tendon(model, i) -> bool:
     return all(int(model.wrap_type[w]) == _WRAP_JOINT for w in _wraps(model, i))
 
 
+def _site_tendon(model, i) -> bool:
+    """Whether tendon `i` runs straight from site to site (no geom wrapping, no pulley)."""
+    return all(int(model.wrap_type[w]) == _WRAP_SITE for w in _wraps(model, i))
+
+
 def _tendon_is_passive(model, i) -> bool:
     return model.tendon_stiffness[i] != 0 or model.tendon_damping[i] != 0
 
@@ -425,7 +456,9 @@ def _fixed_tendons(model, coordinate: dict[int, int], d: int) -> tuple[FixedTend
     """The fixed tendons with a spring or a damper, on the shape coordinates `coordinate[j]`
     of the model's hinges and slides ($q = $ `qpos - qpos0`)."""
     tendons = []
-    for i in filter(lambda i: _tendon_is_passive(model, i), range(model.ntendon)):
+    for i in range(model.ntendon):
+        if not (_fixed_tendon(model, i) and _tendon_is_passive(model, i)):
+            continue
         coefficients, length_at_home = np.zeros(d), 0.0
         for w in _wraps(model, i):
             j, coef = int(model.wrap_objid[w]), float(model.wrap_prm[w])
@@ -465,12 +498,11 @@ def _ignored_elements(model, passive: bool):
     plain = [i for i, kept in enumerate(passive_tendons) if not kept]
     if plain:
         ignored.append(
-            f"fixed tendon(s) {_names(model, 'tendon', plain)} (no passive force: "
-            "their limits only)"
+            f"tendon(s) {_names(model, 'tendon', plain)} (no passive force: their limits only)"
         )
     unused = [i for i, kept in enumerate(passive_tendons) if kept and not passive]
     if unused:
-        ignored.append(f"springs and dampers of fixed tendon(s) {_names(model, 'tendon', unused)}")
+        ignored.append(f"springs and dampers of tendon(s) {_names(model, 'tendon', unused)}")
     friction = np.flatnonzero(np.asarray(model.tendon_frictionloss))
     if friction.size:
         ignored.append(f"friction loss of tendon(s) {_names(model, 'tendon', friction)}")
@@ -593,8 +625,10 @@ def parts_from_mjmodel(model, *, passive: bool = False) -> ModelParts:
     if ignored:
         warnings.warn(
             "bundledyn keeps the kinematic tree, the inertias, the rotor inertia of hinges "
-            "and slides and, when asked, the linear springs and dampers of joints and fixed "
-            "tendons; ignored from the MuJoCo model: " + "; ".join(ignored) + ".",
+            "and slides and, when asked, the linear springs and dampers of joints and tendons "
+            "(fixed, or spatial from site to site); ignored from the MuJoCo model: "
+            + "; ".join(ignored)
+            + ".",
             stacklevel=4,
         )
     if refs:
@@ -611,7 +645,51 @@ def parts_from_mjmodel(model, *, passive: bool = False) -> ModelParts:
         tendons=_fixed_tendons(model, coordinate, len(armature)), ignored=tuple(ignored),
         couplings=_couplings(model, coordinate),
         root_pose=_root_pose(model, root, attached),
+        spatial_tendons=_spatial_tendons(model, index, welded, _root_pose(model, root, attached))
+        if passive else (),
     )  # fmt: skip
+
+
+def _spatial_tendons(model, index, welded, root_pose) -> tuple[SpatialTendon, ...]:
+    """The site-to-site tendons with a spring or a damper, each site placed in the frame of
+    its bundledyn body (`index`; a welded-away body through `welded`'s offsets; the world
+    through the held base's pose `root_pose`)."""
+    tendons = []
+    for i in range(model.ntendon):
+        if _fixed_tendon(model, i) or not _tendon_is_passive(model, i):
+            continue
+        bodies, points = [], []
+        for w in _wraps(model, i):
+            site = int(model.wrap_objid[w])
+            body, point = _site_place(model, site, index, welded, root_pose)
+            bodies.append(body)
+            points.append(point)
+        tendons.append(
+            SpatialTendon(
+                _name(model, "tendon", i), tuple(bodies), np.stack(points),
+                float(model.tendon_stiffness[i]), float(model.tendon_damping[i]),
+                float(np.ravel(model.tendon_lengthspring[i])[0]),
+            )
+        )  # fmt: skip
+    return tuple(tendons)
+
+
+def _site_place(model, site: int, index, welded, root_pose):
+    """The bundledyn body of a site and its place in that body's frame."""
+    b, point = int(model.site_bodyid[site]), np.append(model.site_pos[site], 1.0)
+    if b in index:
+        return index[b], point[:3]
+    if b in welded:
+        body, offset = welded[b]
+        return body, (offset @ point)[:3]
+    if b == 0 and root_pose is not None:  # the world, where the base is held in it
+        return 0, (np.linalg.inv(root_pose) @ point)[:3]
+    raise ValueError(
+        f"site '{_name(model, 'site', site)}' of a tendon with a spring or a damper is on "
+        "the world, and the model's root floats: the tendon would pull the tree toward a "
+        "point of the world, an external force bundledyn's tendons do not carry. Put the "
+        "site on a body of the tree, or give the tendon no stiffness and damping."
+    )
 
 
 def _root_pose(model, root: int, attached: bool) -> np.ndarray | None:
