@@ -119,6 +119,17 @@ def random_state(model, rng, angle=np.pi):
     return qpos, rng.normal(size=model.nv)
 
 
+def passive_forces_at_random_states(model, *, seed, angle, count=3):
+    """MuJoCo's passive forces (`qfrc_spring + qfrc_damper`) at `count` random states:
+    `(data, force)` pairs, `data` holding the state."""
+    data = mujoco.MjData(model)
+    rng = np.random.default_rng(seed)
+    for _ in range(count):
+        data.qpos[:], data.qvel[:] = random_state(model, rng, angle=angle)
+        mujoco.mj_forward(model, data)
+        yield data, data.qfrc_spring + data.qfrc_damper
+
+
 def mujoco_poses(model, data, qpos):
     """World poses of all MuJoCo bodies after `mj_kinematics`, shape (nbody, 4, 4)."""
     data.qpos[:] = qpos
@@ -407,12 +418,7 @@ def test_a_fixed_tendons_spring_and_damper_are_mujocos_passive_force():
         warnings.simplefilter("ignore")  # the tendon without passive force, a joint's ref
         scene = bundledyn.Scene.from_mjcf(model, passive=True)
     assert [type(e).__name__ for e in scene.effects] == ["ShapeDamper", "ShapeSpring"]
-    data = mujoco.MjData(model)
-    rng = np.random.default_rng(6)
-    for _ in range(3):
-        data.qpos[:], data.qvel[:] = random_state(model, rng, angle=0.8)
-        mujoco.mj_forward(model, data)
-        force = data.qfrc_spring + data.qfrc_damper
+    for data, force in passive_forces_at_random_states(model, seed=6, angle=0.8):
         state = bundledyn.state_from_mujoco(scene.system, data.qpos, data.qvel, qpos0=model.qpos0)
         _, Q = scene.forces(bundledyn.Kinematics(0.0, state.g, state.q, state.xi, state.qdot))
         # The tendon's joints are hinges and the slide (MuJoCo dofs 6-9, shape coordinates 0-3).
@@ -974,12 +980,7 @@ def test_a_spatial_tendons_spring_and_damper_are_mujocos_passive_force(xml):
     assert ("'string' (no passive force" in messages) == (xml == SPATIAL)
     assert [type(e).__name__ for e in scene.effects] == ["TendonSpring", "TendonDamper"]
     floating = model.jnt_type[0] == FREE
-    data = mujoco.MjData(model)
-    rng = np.random.default_rng(8)
-    for _ in range(3):
-        data.qpos[:], data.qvel[:] = random_state(model, rng, angle=1.0)
-        mujoco.mj_forward(model, data)
-        force = data.qfrc_spring + data.qfrc_damper
+    for data, force in passive_forces_at_random_states(model, seed=8, angle=1.0):
         state = bundledyn.state_from_mujoco(
             scene.system, data.qpos, data.qvel, free_root=bool(floating)
         )
