@@ -3,6 +3,7 @@
 import importlib.metadata
 
 from . import checks, identify, lie, stress
+from ._batches import DeviceBatch, vmap_over_devices
 from ._coupled_effects import OnFullShape, OnFullShapePotential, on_full_shape
 from ._dynamics import (
     BundleGeometry,
@@ -266,6 +267,8 @@ __all__ = [
     "SceneFileError",
     "SceneTerm",
     "ShapeDamper",
+    "DeviceBatch",
+    "vmap_over_devices",
     "SitePath",
     "TendonDamper",
     "TendonSpring",

@@ -26,7 +26,7 @@ LAYERS = (
     ("term", {"_term", "_reverse_term"}),
     ("integrators", {"_solver"}),
     ("tensorial", {"_tensorial"}),
-    ("simulate", {"_simulate", "_stiffness", "_trajectory"}),
+    ("simulate", {"_simulate", "_stiffness", "_trajectory", "_batches"}),
     (
         "identification, checks and stress",
         {"_checks", "checks", "_identify", "identify", "_stress", "stress"},

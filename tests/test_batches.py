@@ -1,0 +1,118 @@
+"""A batch spread over devices with `vmap_over_devices`: on 4 host devices (a fresh
+interpreter, since JAX fixes its device count when it starts), the results of adaptive
+rollouts whose step counts differ between members, and gradients through them, equal the
+one-device `jax.vmap`'s to rounding, for a batch the device count does not divide; the
+compiled program holds no cross-device collective (where `jax.jit` of the vmapped solve on
+sharded inputs all-reduces its stopping test every step); a batch of the same size reuses
+the compiled program, a new size compiles once."""
+
+import json
+import subprocess
+import sys
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+from jax.sharding import Mesh
+
+import bundledyn as bd
+
+# A fresh interpreter compiling seven programs (the sharded and one-device batches, their
+# gradients, the automatically partitioned one): a minute on two cores. The batch guide's
+# example, run everyday by test_docs.py, shards an adaptive batch over two devices.
+four_devices = pytest.mark.slow
+
+PROGRAM = """
+import os
+os.environ["XLA_FLAGS"] = os.environ.get("XLA_FLAGS", "") + " --xla_force_host_platform_device_count=4"
+import json, warnings
+import jax, jax.numpy as jnp, numpy as np
+from jax.sharding import Mesh, NamedSharding, PartitionSpec
+import bundledyn as bd
+
+bd.enable_x64()
+with warnings.catch_warnings():
+    warnings.simplefilter("ignore")  # the chain's motors: not bundledyn's
+    scene = bd.Scene.from_mjcf(bd.models / "floating_chain.xml")
+d = scene.system.shape_dim
+
+
+def final(xi):
+    state = bd.State(jnp.eye(4), jnp.zeros(d), xi, jnp.ones(d))
+    traj = bd.simulate(scene, state, 0.5, rtol=1e-10, atol=1e-10)
+    return traj.g[-1], traj.stats["num_steps"]
+
+
+def loss(xi):
+    return jnp.sum(final(xi)[0][:3, 3] ** 2)
+
+
+speeds = jnp.arange(1.0, 7.0)[:, None] * jnp.array([1.0, 1.0, 1.0, 0.1, 0.1, 0.1])
+xi = jax.random.normal(jax.random.key(0), (6, 6)) * speeds  # 6 members on 4 devices
+batched = bd.vmap_over_devices(final)
+g, steps = batched(xi)
+g1, steps1 = jax.jit(jax.vmap(final))(xi)
+gradients = bd.vmap_over_devices(jax.grad(loss))(xi)
+gradients1 = jax.jit(jax.vmap(jax.grad(loss)))(xi)
+through = jax.grad(lambda x: jnp.sum(batched(x)[0][:, :3, 3] ** 2))(xi)
+padded = jnp.concatenate([xi, jnp.repeat(xi[-1:], 2, axis=0)])
+ours = batched.program.lower(padded).compile().as_text()
+mesh = Mesh(np.array(jax.devices()), ("batch",))
+on_devices = jax.device_put(padded, NamedSharding(mesh, PartitionSpec("batch")))
+automatic = jax.jit(jax.vmap(final)).lower(on_devices).compile().as_text()
+collectives = ("all-reduce", "all-gather", "collective-permute", "all-to-all")
+batched(xi + 1e-3)
+same_size = batched.program._cache_size()
+batched(jax.random.normal(jax.random.key(1), (9, 6)))
+print(json.dumps({
+    "devices": len(jax.devices()),
+    "poses": float(jnp.max(jnp.abs(g - g1))),
+    "steps": np.asarray(steps).tolist(),
+    "steps_on_one": np.asarray(steps1).tolist(),
+    "gradients": float(jnp.max(jnp.abs(gradients - gradients1))),
+    "through": float(jnp.max(jnp.abs(through - gradients1))),
+    "ours": [c for c in collectives if c in ours],
+    "automatic": [c for c in collectives if c in automatic],
+    "same_size": same_size,
+    "new_size": batched.program._cache_size(),
+}))
+"""
+
+
+@pytest.fixture(scope="module")
+def on_four_devices():
+    done = subprocess.run(
+        [sys.executable, "-c", PROGRAM], capture_output=True, text=True, timeout=600
+    )
+    assert done.returncode == 0, done.stderr[-3000:]
+    return json.loads(done.stdout.splitlines()[-1])
+
+
+@four_devices
+def test_a_batch_over_four_devices_is_the_one_device_batch(on_four_devices):
+    r = on_four_devices
+    assert r["devices"] == 4
+    assert r["steps"] == r["steps_on_one"] and len(set(r["steps"])) > 3  # adaptive, unequal
+    assert r["poses"] < 1e-13
+    assert r["gradients"] < 1e-13 and r["through"] < 1e-13
+
+
+@four_devices
+def test_each_device_runs_its_own_loop_without_collectives(on_four_devices):
+    assert on_four_devices["ours"] == []
+    assert "all-reduce" in on_four_devices["automatic"]  # what shard_map avoids
+
+
+@four_devices
+def test_a_batch_of_the_same_size_reuses_its_program(on_four_devices):
+    assert on_four_devices["same_size"] == 1 and on_four_devices["new_size"] == 2
+
+
+def test_what_cannot_be_spread_is_refused_with_the_fix():
+    batched = bd.vmap_over_devices(lambda x, y: x + y)
+    with pytest.raises(ValueError, match="of one size.*Close over what is not batched"):
+        batched(jnp.zeros(3), jnp.zeros(4))
+    mesh = Mesh(np.array(jax.devices()[:1]).reshape(1, 1), ("a", "b"))
+    with pytest.raises(ValueError, match="mesh with one axis"):
+        bd.vmap_over_devices(lambda x: x, mesh=mesh)
