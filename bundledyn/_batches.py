@@ -8,8 +8,10 @@ gives each device its own loop over its own members, with no collective inside i
 to a multiple of the device count, and the padding stripped from the results.
 """
 
+import inspect
 from collections.abc import Callable
 
+import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -32,6 +34,14 @@ def _padded(tree, size: int):
     return jax.tree.map(pad, tree)
 
 
+def _arity(fn: Callable) -> int:
+    """How many positional arguments `fn` takes (for `in_axes=0`)."""
+    parameters = inspect.signature(fn).parameters.values()
+    if any(p.kind is p.VAR_POSITIONAL for p in parameters):
+        raise ValueError("`fn` takes *args: give `in_axes` as a tuple, one entry per argument.")
+    return sum(p.kind in (p.POSITIONAL_ONLY, p.POSITIONAL_OR_KEYWORD) for p in parameters)
+
+
 def _batch_size(tree) -> int:
     sizes = {int(np.shape(leaf)[0]) if np.ndim(leaf) else -1 for leaf in jax.tree.leaves(tree)}
     if len(sizes) != 1 or -1 in sizes:
@@ -47,39 +57,66 @@ def _batch_size(tree) -> int:
 class DeviceBatch:
     """The batched function `vmap_over_devices` returns (see there).
 
-    **Attributes:** `program`, the compiled function of the padded batch (a `jax.jit`
-    function of `jax.shard_map(jax.vmap(fn))`: `program.lower(...)` shows what each device
-    runs); `mesh`.
+    **Attributes:** `program`, the compiled function of the padded batch
+    (`jax.shard_map(jax.vmap(fn))` under `equinox.filter_jit`: `program.lower(...)` shows
+    what each device runs); `mesh`.
     """
 
-    def __init__(self, fn: Callable, mesh: Mesh, keep_sharded: bool):
-        spec = PartitionSpec(mesh.axis_names[0])
-        # The solvers' loops carry values that are the same on every device; the check of
-        # that replication would have to be told about each of diffrax's internal arrays.
-        mapped = jax.shard_map(
-            jax.vmap(fn), mesh=mesh, in_specs=spec, out_specs=spec, check_vma=False
-        )
-        self.program = jax.jit(mapped)
+    def __init__(self, fn: Callable, mesh: Mesh, keep_sharded: bool, in_axes: tuple):
+        axis = mesh.axis_names[0]
+
+        def program(args):
+            arrays, static = eqx.partition(args, eqx.is_array)
+            specs = tuple(
+                jax.tree.map(lambda _, a=a: PartitionSpec(axis) if a == 0 else PartitionSpec(), x)
+                for x, a in zip(arrays, in_axes, strict=True)
+            )
+
+            def share(arrays):
+                return jax.vmap(fn, in_axes=in_axes)(*eqx.combine(arrays, static))
+
+            # The solvers' loops carry values that are the same on every device; the check
+            # of that replication would have to be told about each of diffrax's arrays.
+            return jax.shard_map(
+                share, mesh=mesh, in_specs=(specs,), out_specs=PartitionSpec(axis),
+                check_vma=False,
+            )(arrays)  # fmt: skip
+
+        self.program = eqx.filter_jit(program)
         self.mesh = mesh
         self.keep_sharded = keep_sharded
+        self.in_axes = in_axes
 
     def __call__(self, *args):
-        size = _batch_size(args)
+        if len(args) != len(self.in_axes):
+            raise ValueError(
+                f"`in_axes` names {len(self.in_axes)} arguments; the call gives {len(args)}."
+            )
+        batched = tuple(x for x, a in zip(args, self.in_axes, strict=True) if a == 0)
+        size = _batch_size(batched)
         devices = self.mesh.devices.size
-        out = self.program(*_padded(args, -(-size // devices) * devices))
-        out = jax.tree.map(lambda x: x[:size], out)
+        padded = tuple(
+            _padded(x, -(-size // devices) * devices) if a == 0 else x
+            for x, a in zip(args, self.in_axes, strict=True)
+        )
+        out = jax.tree.map(lambda x: x[:size], self.program(padded))
         if self.keep_sharded:
             return out
         return jax.device_put(out, jax.local_devices()[0])
 
 
 def vmap_over_devices(
-    fn: Callable, *, mesh: Mesh | None = None, keep_sharded: bool = False
+    fn: Callable,
+    *,
+    in_axes: int | tuple[int | None, ...] = 0,
+    mesh: Mesh | None = None,
+    keep_sharded: bool = False,
 ) -> DeviceBatch:
     r"""`jax.vmap(fn)`, its batch spread over devices, each running its share on its own.
 
-    Every argument of the returned function is batched along its first axis (close over
-    the rest, e.g. the scene). The batch is split over the mesh's devices with
+    The arguments that `in_axes` marks 0 are batched along their first axis, those it
+    marks None are shared by every member (e.g. the scene, any pytree: its arrays are
+    copied to every device, its static parts key the compilation). The batch is split over the mesh's devices with
     `jax.shard_map`; each device runs `jax.vmap(fn)` on its share as one compiled program,
     so an adaptive solve's loop on one device waits for its own members only, never for
     another device's (no collective inside the loop). A batch that the device count does
@@ -89,7 +126,8 @@ def vmap_over_devices(
 
     **Arguments:**
 
-    - `fn`: a function of one member's arrays (pytrees), returning a pytree of arrays.
+    - `fn`: a function of one member's arguments (pytrees), returning a pytree of arrays.
+    - `in_axes`: 0 (every argument batched) or a tuple of 0 and None, one per argument.
     - `mesh`: a one-axis `jax.sharding.Mesh`; default, every local device.
     - `keep_sharded`: leave the results on the devices, sharded along the batch (for a
       further sharded computation), instead of gathering them on the first device.
@@ -101,9 +139,15 @@ def vmap_over_devices(
     """
     if mesh is None:
         mesh = Mesh(np.array(jax.local_devices()), (_AXIS,))
+    axes = (in_axes,) * _arity(fn) if isinstance(in_axes, int) else tuple(in_axes)
+    if not set(axes) <= {0, None} or 0 not in axes:
+        raise ValueError(
+            f"`in_axes` is 0 or a tuple of 0 (batched along the first axis) and None "
+            f"(shared), one per argument, with at least one 0; got {in_axes}."
+        )
     if len(mesh.axis_names) != 1:
         raise ValueError(
             f"`vmap_over_devices` spreads one batch axis: give a mesh with one axis, got "
             f"axes {mesh.axis_names}."
         )
-    return DeviceBatch(fn, mesh, keep_sharded)
+    return DeviceBatch(fn, mesh, keep_sharded, axes)

@@ -1,7 +1,8 @@
 """A batch spread over devices with `vmap_over_devices`: on 4 host devices (a fresh
 interpreter, since JAX fixes its device count when it starts), the results of adaptive
-rollouts whose step counts differ between members, and gradients through them, equal the
-one-device `jax.vmap`'s to rounding, for a batch the device count does not divide; the
+rollouts whose step counts differ between members, gradients through them and the
+invariance residuals of shapes (the system shared) equal the one-device `jax.vmap`'s to
+rounding, for a batch the device count does not divide; the
 compiled program holds no cross-device collective (where `jax.jit` of the vmapped solve on
 sharded inputs all-reduces its stopping test every step); a batch of the same size reuses
 the compiled program, a new size compiles once."""
@@ -38,7 +39,11 @@ with warnings.catch_warnings():
 d = scene.system.shape_dim
 
 
+traced = []
+
+
 def final(xi):
+    traced.append(1)  # once per compilation
     state = bd.State(jnp.eye(4), jnp.zeros(d), xi, jnp.ones(d))
     traj = bd.simulate(scene, state, 0.5, rtol=1e-10, atol=1e-10)
     return traj.g[-1], traj.stats["num_steps"]
@@ -57,14 +62,21 @@ gradients = bd.vmap_over_devices(jax.grad(loss))(xi)
 gradients1 = jax.jit(jax.vmap(jax.grad(loss)))(xi)
 through = jax.grad(lambda x: jnp.sum(batched(x)[0][:, :3, 3] ** 2))(xi)
 padded = jnp.concatenate([xi, jnp.repeat(xi[-1:], 2, axis=0)])
-ours = batched.program.lower(padded).compile().as_text()
+ours = batched.program.lower((padded,)).lowered.compile().as_text()
 mesh = Mesh(np.array(jax.devices()), ("batch",))
 on_devices = jax.device_put(padded, NamedSharding(mesh, PartitionSpec("batch")))
 automatic = jax.jit(jax.vmap(final)).lower(on_devices).compile().as_text()
 collectives = ("all-reduce", "all-gather", "collective-permute", "all-to-all")
+before = len(traced)
 batched(xi + 1e-3)
-same_size = batched.program._cache_size()
+same_size = len(traced) - before
 batched(jax.random.normal(jax.random.key(1), (9, 6)))
+new_size = len(traced) - before - same_size
+shapes = jax.random.normal(jax.random.key(2), (6, d))
+conditions = lambda system, q: bd.checks.galilean_conditions(system, q).residuals
+shared = bd.vmap_over_devices(conditions, in_axes=(None, 0))(scene.system, shapes)
+shared_on_one = jax.jit(jax.vmap(lambda q: conditions(scene.system, q)))(shapes)
+report = bd.checks.galilean_invariance(scene.system, jax.random.key(3), n=6)
 print(json.dumps({
     "devices": len(jax.devices()),
     "poses": float(jnp.max(jnp.abs(g - g1))),
@@ -74,8 +86,9 @@ print(json.dumps({
     "through": float(jnp.max(jnp.abs(through - gradients1))),
     "ours": [c for c in collectives if c in ours],
     "automatic": [c for c in collectives if c in automatic],
-    "same_size": same_size,
-    "new_size": batched.program._cache_size(),
+    "traced": [same_size, new_size],
+    "invariance": float(jnp.max(jnp.abs(shared - shared_on_one))),
+    "invariance_passed": bool(report.passed),
 }))
 """
 
@@ -106,7 +119,16 @@ def test_each_device_runs_its_own_loop_without_collectives(on_four_devices):
 
 @four_devices
 def test_a_batch_of_the_same_size_reuses_its_program(on_four_devices):
-    assert on_four_devices["same_size"] == 1 and on_four_devices["new_size"] == 2
+    same_size, new_size = on_four_devices["traced"]
+    assert same_size == 0 and new_size >= 1
+
+
+@four_devices
+def test_invariance_residuals_over_four_devices_are_the_one_device_ones(on_four_devices):
+    """A system shared by every member (`in_axes=(None, 0)`), shapes batched; and
+    `checks.galilean_invariance`, which spreads its shapes over the devices, passes."""
+    assert on_four_devices["invariance"] < 1e-13
+    assert on_four_devices["invariance_passed"]
 
 
 def test_what_cannot_be_spread_is_refused_with_the_fix():
@@ -116,3 +138,5 @@ def test_what_cannot_be_spread_is_refused_with_the_fix():
     mesh = Mesh(np.array(jax.devices()[:1]).reshape(1, 1), ("a", "b"))
     with pytest.raises(ValueError, match="mesh with one axis"):
         bd.vmap_over_devices(lambda x: x, mesh=mesh)
+    with pytest.raises(ValueError, match="at least one 0"):
+        bd.vmap_over_devices(lambda x, y: x, in_axes=(None, None))

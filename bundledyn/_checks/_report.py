@@ -1,11 +1,15 @@
 """`galilean_invariance`: Theorems 2.2 and 2.3 on a batch of sampled shapes, in one compiled call."""
 
+import functools
+
 import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
 from jax.core import Tracer
+from jax.sharding import Mesh
 
+from .._batches import DeviceBatch, vmap_over_devices
 from .._precision import default_residual_tolerance, warn_in_callers_code
 from .._systems._base import AbstractSystem
 from ._conditions import invariance_residuals
@@ -83,11 +87,16 @@ class InvarianceReport(eqx.Module):
         return "\n".join(lines)
 
 
+@functools.cache
+def _battery(devices: tuple) -> DeviceBatch:
+    """`invariance_residuals` over a batch of shapes, spread over `devices`."""
+    mesh = Mesh(np.array(devices), ("shapes",))
+    return vmap_over_devices(invariance_residuals, in_axes=(None, 0), mesh=mesh)
+
+
 @eqx.filter_jit
-def _battery(system, shapes):
-    conditions, properties = jax.vmap(lambda q: invariance_residuals(system, q))(shapes)
-    mass = jnp.trace(system.metric(shapes[0])[3:6, 3:6]) / 3.0
-    return conditions, properties, mass
+def _mass(system, q):
+    return jnp.trace(system.metric(q)[3:6, 3:6]) / 3.0
 
 
 def _tolerance(tolerance, dtype) -> float:
@@ -118,7 +127,8 @@ def galilean_invariance(
     r"""Check that `system` is an acceptable mechanical model: Theorems 2.2 and 2.3 on sampled shapes.
 
     Samples `n` shapes uniformly in $[-\text{scale}, \text{scale}]^d$ and evaluates
-    `galilean_conditions` and `rigid_structure` at all of them in one jitted, vmapped call.
+    `galilean_conditions` and `rigid_structure` at all of them in one vmapped call, spread
+    over the local devices (`vmap_over_devices`).
     The translations $U$, twists $X$ and shape directions $\delta q$ the theorems quantify over
     enter through bases (the conditions are linear in each), so only shapes are sampled.
 
@@ -155,7 +165,8 @@ def galilean_invariance(
         raise ValueError(
             f"`galilean_invariance` needs shapes of shape (n >= 1, {d}), got {shapes.shape}."
         )
-    conditions, properties, mass = _battery(system, shapes)
+    conditions, properties = _battery(tuple(jax.local_devices()))(system, shapes)
+    mass = _mass(system, shapes[0])
     tolerance = _tolerance(tolerance, conditions.dtype)
     return InvarianceReport(
         type(system).__name__,
