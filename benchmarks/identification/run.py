@@ -12,7 +12,10 @@ from benchmarks.identification.ours import Bundledyn
 
 SEGMENTS = 8  # mujoco.sysid's pieces in its multiple-shooting variant
 METHODS = ("bundledyn", "sysid", "sysid_segments")  # the last two: single shooting, 8 pieces
-ROUNDING = 1e-8  # the cost at the truth over the cost at the start, noise-free: at most this
+# The cost at the truth over the cost at the start, noise-free: at most this. Measured at
+# most 5e-14 where the method fits the record's problem; the arm's torque log read as a
+# cubic instead of linearly gives 3.6e-9.
+ROUNDING = 1e-11
 
 
 def _scored(case, fitted_model, P_true, directions, unseen, level):
