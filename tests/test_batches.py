@@ -19,10 +19,14 @@ from jax.sharding import Mesh
 
 import bundledyn as bd
 
+
 # A fresh interpreter compiling seven programs (the sharded and one-device batches, their
 # gradients, the automatically partitioned one): a minute on two cores. The batch guide's
 # example, run everyday by test_docs.py, shards an adaptive batch over two devices.
-four_devices = pytest.mark.slow
+# One worker for them in `.ci/run`'s slow part (`--dist loadgroup`): they share the run.
+def four_devices(test):
+    return pytest.mark.slow(pytest.mark.xdist_group("four_devices")(test))
+
 
 PROGRAM = """
 import os
