@@ -143,7 +143,13 @@ from ._systems._joints import (
 )
 from ._systems._link import Link
 from ._systems._metric_jet import AbstractMetricJet, DenseMetricJet
-from ._systems._mujoco_import import FixedTendon, ModelParts, parts_from_mjcf, parts_from_urdf
+from ._systems._mujoco_import import (
+    FixedTendon,
+    ModelParts,
+    SpatialTendon,
+    parts_from_mjcf,
+    parts_from_urdf,
+)
 from ._systems._mujoco_state import state_from_mujoco, state_to_mujoco
 from ._systems._multibody import AbstractMultibody, Multibody, Resectioned
 from ._systems._rigid_body import RigidBody, spatial_inertia
@@ -237,6 +243,7 @@ __all__ = [
     "Link",
     "MaggiEquations",
     "ModelParts",
+    "SpatialTendon",
     "MovingFrame",
     "Multibody",
     "NonholonomicSystem",
