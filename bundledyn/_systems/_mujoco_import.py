@@ -622,6 +622,7 @@ def parts_from_mjmodel(model, *, passive: bool = False) -> ModelParts:
         names.append(_name(model, "body", b))
         links.append(Link(rigid_body(b), _body_joint(model, b, joints), parent, placement))
     ignored = _ignored_elements(model, passive)
+    root_pose = _root_pose(model, root, attached)
     if ignored:
         warnings.warn(
             "bundledyn keeps the kinematic tree, the inertias, the rotor inertia of hinges "
@@ -644,8 +645,8 @@ def parts_from_mjmodel(model, *, passive: bool = False) -> ModelParts:
         stiffness=np.array(stiffness, dtype=float), spring_rest=np.array(rest, dtype=float),
         tendons=_fixed_tendons(model, coordinate, len(armature)), ignored=tuple(ignored),
         couplings=_couplings(model, coordinate),
-        root_pose=_root_pose(model, root, attached),
-        spatial_tendons=_spatial_tendons(model, index, welded, _root_pose(model, root, attached))
+        root_pose=root_pose,
+        spatial_tendons=_spatial_tendons(model, index, welded, root_pose)
         if passive else (),
     )  # fmt: skip
 
