@@ -4,7 +4,7 @@ The importers read a compiled `mujoco.MjModel` (so every MJCF default, `childcla
 `inertiafromgeom`, `fullinertia`, angle unit, `ref` … is resolved exactly as MuJoCo
 resolves it) and build a `Multibody`:
 
-- **The tree.** The worldbody must hold exactly one body, the *root*. A root with a free
+- **The tree.** The *root* is the body under the worldbody. A root with a free
   joint becomes the base (body 0) and its frame the section frame. MuJoCo welds a root
   without a joint to the world, and so does `Scene.from_mjcf` (and a scene file or
   `bundledyn.load_scene` of the model): the root is the base, held at its pose
@@ -16,7 +16,10 @@ resolves it) and build a `Multibody`:
   `world_stand_in`) that `Scene.from_mjcf` holds fixed at the world's frame, so its inertia
   enters no equation, and the root's joints are the first shape coordinates, as in
   MuJoCo's `qpos`. Links follow MuJoCo's body order, so $q$ and $\dot q$ follow MuJoCo's
-  joint order.
+  joint order. Several bodies under the worldbody (a finger and its spinner, a cup and its
+  ball, an arm and the object it pushes) are several trees hanging from the same held
+  world, each attached by joints or welded; a body welded to the world never moves and is
+  not a bundledyn body. Several trees of which one floats freely are refused.
 - **Joints** (axes and anchors in the child frame, MuJoCo's `jnt_axis` / `jnt_pos`):
   hinge → `Revolute`, slide → `Prismatic`, ball → `Spherical`; two hinges on one body whose
   axes intersect and are not parallel → `Universal` (anchored at the intersection); any
@@ -35,8 +38,8 @@ resolves it) and build a `Multibody`:
   $q = 0$ is the home pose; pass `qpos0=model.qpos0` to the converters when a model has
   non-zero refs (importing one warns).
 
-Not supported (`ValueError` naming the element and the fix): several bodies under the
-worldbody, free joints below the root
+Not supported (`ValueError` naming the element and the fix): several trees of which one
+floats freely, free joints below the root
 (MuJoCo itself rejects those), equality constraints other than joint couplings, spatial
 tendons, the armature of
 tendons, bodies without mass that carry joints, and a root body without mass; when the
@@ -382,24 +385,29 @@ def _check_unsupported(model, passive: bool):
     roots = [b for b in range(1, model.nbody) if model.body_parentid[b] == 0]
     if not roots:
         raise ValueError("the model has no body under the worldbody: nothing to import.")
-    if len(roots) > 1:
-        names = ", ".join(f"'{_name(model, 'body', b)}'" for b in roots)
+    floating = [b for b in roots if _free_root(model, b)]
+    if len(roots) > 1 and floating:
+        names = ", ".join(f"'{_name(model, 'body', b)}'" for b in floating)
         raise ValueError(
-            f"the worldbody holds {len(roots)} bodies ({names}); bundledyn imports one "
-            "floating tree whose root is the single body under the worldbody. Nest them "
-            "under one root body, remove static scenery bodies (put their geoms directly in "
-            "the worldbody), or import each tree as its own model."
+            f"the worldbody holds {len(roots)} trees and {names} of them float freely; "
+            "bundledyn imports several trees when each hangs from the world (by hinges, "
+            "slides or a ball joint, or welded), as one system on the held world, or one "
+            "floating tree alone. Import each floating tree as its own model, or attach the "
+            "free ones to the world by joints."
         )
-    root = roots[0]
     for j in range(model.njnt):
         b = int(model.jnt_bodyid[j])
-        if int(model.jnt_type[j]) == _FREE and b != root:
+        if int(model.jnt_type[j]) == _FREE and b not in floating:
             raise ValueError(
                 f"free joint {_joint_label(model, j)} on body '{_name(model, 'body', b)}' "
                 "below the root: only the root body may float freely. Remove the free joint "
                 "or attach the body by other joints."
             )
-    return root
+    return roots
+
+
+def _free_root(model, b: int) -> bool:
+    return bool(model.body_jntnum[b]) and int(model.jnt_type[model.body_jntadr[b]]) == _FREE
 
 
 def _names(model, kind, indices):
@@ -546,12 +554,12 @@ def parts_from_mjmodel(model, *, passive: bool = False) -> ModelParts:
 
     The `ModelParts`.
     """
-    root = _check_unsupported(model, passive)
-    # A root attached to the world by joints (not a free joint) hangs from the world, which
-    # becomes the base: held fixed, it enters no equation of the shape, so any mass serves.
-    attached = (
-        bool(model.body_jntnum[root]) and int(model.jnt_type[model.body_jntadr[root]]) != _FREE
-    )
+    roots = _check_unsupported(model, passive)
+    root = roots[0]
+    # Trees attached to the world by joints (not a free joint), or several trees, hang from
+    # the world, which becomes the base: held fixed, it enters no equation of the shape, so
+    # any mass serves.
+    attached = len(roots) > 1 or (bool(model.body_jntnum[root]) and not _free_root(model, root))
 
     def rigid_body(b):
         name = _name(model, "body", b)
@@ -602,6 +610,10 @@ def parts_from_mjmodel(model, *, passive: bool = False) -> ModelParts:
                     f"'{name}' an <inertial>, or move its joints into its child body (several "
                     "joints on one body are supported and act in order)."
                 )
+            welded[b] = (parent, placement)
+            continue
+        if attached and parent == 0 and not joints:
+            # Welded to the held world (a static target, a mount): it never moves.
             welded[b] = (parent, placement)
             continue
         for j in joints:
