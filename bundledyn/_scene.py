@@ -17,6 +17,7 @@ from ._systems._mujoco_import import (
     FixedTendon,
     ModelParts,
     model_gravity,
+    model_turns_off,
     parts_from_mjcf,
     parts_from_urdf,
 )
@@ -103,7 +104,9 @@ class Scene(eqx.Module):
           about `springref` as a `ShapeSpring` ($-k\,(q - q_{\rm spring})$) and each fixed
           tendon's `stiffness` about its `springlength` $L_s$ as a `ShapeSpring` of rank one
           ($\tfrac12 k\,(c^T q + L_0 - L_s)^2$); a spatial tendon from site to site, its
-          `stiffness` and `damping` as a `TendonSpring` and a `TendonDamper`.
+          `stiffness` and `damping` as a `TendonSpring` and a `TendonDamper`. The springs
+          or dampers the model's `<flag spring="disable">` or `<flag damper="disable">`
+          turns off are not added (which warns).
         - `gravity`: add the model's `<option gravity>` as a `Gravity` (none if it is zero,
           or if the model's `<flag gravity="disable">` turns it off, which warns).
 
@@ -164,7 +167,7 @@ def model_effects(parts: ModelParts, *, passive: bool, gravity: bool) -> list[Ab
     and its `<option gravity>` (`gravity`; none if it is zero), as `Scene.from_mjcf` adds.
     A model that couples joints has its springs and dampers on its full shape
     (`on_full_shape`)."""
-    effects = _passive_effects(parts) if passive else []
+    effects = _passive_effects(parts, model_turns_off(parts.model)) if passive else []
     if parts.couplings:
         effects = [on_full_shape(effect) for effect in effects]
     if not gravity:
@@ -207,10 +210,26 @@ def model_base(parts: ModelParts, *, section=0) -> PrescribedBase | None:
     return PrescribedBase.fixed(parts.root_pose)
 
 
-def _passive_effects(parts: ModelParts) -> list[AbstractEffect]:
+def _passive_effects(parts: ModelParts, off: tuple[str, ...]) -> list[AbstractEffect]:
     """MuJoCo's linear passive forces of an imported model: one damper (diagonal unless a
     fixed tendon couples the coordinates), the joints' springs, one spring per fixed tendon,
-    and a spring and a damper along each spatial tendon."""
+    and a spring and a damper along each spatial tendon; without the springs or the
+    dampers that the model's flags turn `off` (which warns)."""
+    if off:
+        flags = " ".join(f'<flag {kind}="disable">' for kind in off)
+        warnings.warn(
+            f"the model turns its {' and '.join(k + 's' for k in off)} off ({flags}): "
+            "bundledyn adds none either.",
+            stacklevel=4,
+        )
+    return [e for e in _model_passive_effects(parts) if _kind(e) not in off]
+
+
+def _kind(effect: AbstractEffect) -> str:
+    return "damper" if isinstance(effect, (ShapeDamper, TendonDamper)) else "spring"
+
+
+def _model_passive_effects(parts: ModelParts) -> list[AbstractEffect]:
     effects: list[AbstractEffect] = []
     damped = [t for t in parts.tendons if t.damping != 0]
     if damped:

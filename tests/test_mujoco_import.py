@@ -735,6 +735,32 @@ def test_a_model_with_gravity_turned_off_falls_not():
     np.testing.assert_allclose(traj.g[-1, :3, 3], [0.3, 0.0, 1.0], atol=1e-12)
 
 
+@pytest.mark.parametrize("off", ["spring", "damper", "spring and damper"])
+def test_a_model_that_turns_its_springs_or_dampers_off_gets_none(off):
+    """`<flag spring="disable">` and `<flag damper="disable">`: `Scene.from_mjcf(...,
+    passive=True)` says so and adds what the model keeps, whose shape force is MuJoCo's
+    passive force (`qfrc_passive`) with the same flags."""
+    kinds = off.split(" and ")
+    flags = " ".join(f'{kind}="disable"' for kind in kinds)
+    xml = ATTACHED["several"].replace(
+        'timestep="1e-4"/>', f'timestep="1e-4"><flag {flags}/></option>'
+    )
+    model = mujoco.MjModel.from_xml_string(xml)
+    with pytest.warns(UserWarning, match=f"turns its {' and '.join(k + 's' for k in kinds)} off"):
+        scene = bundledyn.Scene.from_mjcf(xml, passive=True)
+    data = mujoco.MjData(model)
+    data.qpos[:], data.qvel[:] = random_state(model, np.random.default_rng(5), angle=0.5)
+    mujoco.mj_forward(model, data)
+    state = bundledyn.state_from_mujoco(
+        scene.system, data.qpos, data.qvel, qpos0=model.qpos0, free_root=False
+    )
+    term = bundledyn.SceneTerm(scene)
+    kinematics = term.kinematics(0.0, term.encode(0.0, state))
+    _, shape_force = scene.forces(kinematics)
+    np.testing.assert_allclose(shape_force, data.qfrc_passive, rtol=0, atol=1e-12)
+    assert np.any(data.qfrc_passive != 0) or off == "spring and damper"
+
+
 def test_root_without_free_joint():
     """The tree of a root without a joint (`Multibody.from_mjcf`) is a system any scene may
     float (`Scene.from_mjcf` welds it, as MuJoCo does); free_root=False converts."""

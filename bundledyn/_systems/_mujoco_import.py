@@ -84,6 +84,7 @@ __all__ = [
     "parts_from_mjmodel",
     "parts_from_urdf",
     "world_stand_in",
+    "model_turns_off",
 ]
 
 # MuJoCo's mjtJoint values.
@@ -94,6 +95,8 @@ _WRAP_SITE = 3  # mjtWrap.mjWRAP_SITE: a spatial tendon's site
 _JOINT_NAMES = {_FREE: "free", _BALL: "ball", _SLIDE: "slide", _HINGE: "hinge"}
 _MINVAL = 1e-15  # mjMINVAL: MuJoCo's threshold for "no mass"
 _DISABLE_GRAVITY = 1 << 7  # mjtDisableBit.mjDSBL_GRAVITY: `<flag gravity="disable">`
+_DISABLE_SPRING = 1 << 5  # mjtDisableBit.mjDSBL_SPRING: `<flag spring="disable">`
+_DISABLE_DAMPER = 1 << 6  # mjtDisableBit.mjDSBL_DAMPER: `<flag damper="disable">`
 
 
 class FixedTendon(NamedTuple):
@@ -182,6 +185,17 @@ def model_gravity(model) -> np.ndarray | None:
     if model.opt.disableflags & _DISABLE_GRAVITY:
         return None
     return np.asarray(model.opt.gravity, dtype=float)
+
+
+def model_turns_off(model) -> tuple[str, ...]:
+    """The passive forces a compiled model's `<flag>`s turn off: `"spring"` where
+    `<flag spring="disable">`, `"damper"` where `<flag damper="disable">`."""
+    flags = int(model.opt.disableflags)
+    return tuple(
+        name
+        for name, bit in (("spring", _DISABLE_SPRING), ("damper", _DISABLE_DAMPER))
+        if flags & bit
+    )
 
 
 # --------------------------------------------------------------------------------------
