@@ -1,0 +1,3 @@
+from benchmarks.survey.cli import main
+
+main()

@@ -1,0 +1,67 @@
+"""`python -m benchmarks.survey`: the run, `--quick` and `--report-only`."""
+
+import traceback
+
+from benchmarks import _output
+from benchmarks._provenance import report_header
+
+DESCRIPTION = "Every MJCF model of dm_control and gymnasium, imported and compared with MuJoCo."
+HORIZON = 1.0  # seconds: the issue's rollout
+PACKAGES = ("bundledyn", "jax", "jaxlib", "diffrax", "numpy", "mujoco", "dm_control", "gymnasium")
+
+
+def measure(quick, repeats):
+    """Every model in a report; None without MuJoCo or the packages that hold the models."""
+    from benchmarks._mujoco import float64_cpu_run_with_mujoco
+    from benchmarks.family.cli import one_core
+    from benchmarks.survey.measure import survey
+    from benchmarks.survey.models import missing_packages, model_files, quick_files
+
+    one_core()
+    if not float64_cpu_run_with_mujoco():
+        return None
+    if not quick and missing_packages():
+        print(
+            f"{', '.join(missing_packages())} not installed: their model files are the survey "
+            "(pip install --no-deps dm_control gymnasium)"
+        )
+        return None
+    t1 = 0.1 if quick else HORIZON
+    report = report_header(PACKAGES, quick, horizon=t1, repeats=repeats, models=[])
+    for seed, file in enumerate(quick_files() if quick else model_files()):
+        try:
+            entry = survey(file, t1=t1, seed=seed, repeats=repeats)
+        except Exception:  # a model the survey cannot run is a finding, not the end of the run
+            entry = {"name": file.name, "status": "failed", "reason": traceback.format_exc(limit=3)}
+        print(f"  {file.name}: {_line(entry)}", flush=True)
+        report["models"].append(entry)
+    return report
+
+
+def _line(entry):
+    if entry["status"] != "imported":
+        return f"{entry['status']}: {entry['reason'].splitlines()[-1][:120]}"
+    return (
+        f"{entry['nv']} DoF, metric {entry['metric_error']:.1e}, rollout "
+        f"{entry['rollout_error']:.1e}, field {entry['field']['ratio']:.1f}x mj_forward, "
+        f"{entry['seconds'][1]:.1f} s ({entry['steps']} steps) vs MuJoCo {entry['mujoco_seconds']:.1f} s"
+    )
+
+
+def main(argv=None):
+    from benchmarks.survey.report import markdown
+
+    parser = _output.parser(DESCRIPTION, "bundledyn's two floating MJCF models, 0.1 s")
+    parser.add_argument("--repeats", type=int, help="timed repeats of the field (default 3)")
+    args = parser.parse_args(argv)
+    where = _output.destination(args, "survey", markdown)
+    if where is None:
+        return 0
+    out, name = where
+    report = measure(args.quick, args.repeats or 3)
+    if report is None:
+        return 1
+    text = markdown(report)
+    print(text)
+    _output.write(out, name, report, text)
+    return report

@@ -1,0 +1,197 @@
+"""One model of the survey: imported as a MuJoCo user would (`Scene.from_mjcf` with the
+model's passive forces and gravity), its metric against MuJoCo's mass matrix and its
+motion against MuJoCo's RK4 at dt = 1e-4, with what bundledyn leaves out turned off in
+MuJoCo (contacts, limits, actuators, and whatever the import's warning lists)."""
+
+import time
+import warnings
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+import bundledyn as bd
+from benchmarks._timing import interleaved
+from benchmarks.speed.field import data_forward_sampler, scene_field_sampler
+
+DT = 1e-4
+TOLERANCE = 1e-12  # of the solve, rtol and atol
+METRIC_GOAL, ROLLOUT_GOAL = 1e-12, 1e-9  # the issue's: relative, and absolute in qpos/qvel
+_FREE, _BALL, _HINGE = 0, 1, 3
+
+
+def comparable(model):
+    """`model` (changed in place) with what bundledyn's import leaves out turned off, and
+    RK4 at `DT`: `(model, what was turned off)`. Springs, dampers and gravity stay as the
+    model has them."""
+    import mujoco
+
+    off = mujoco.mjtDisableBit
+    model.opt.disableflags |= (
+        off.mjDSBL_CONTACT | off.mjDSBL_LIMIT | off.mjDSBL_ACTUATION
+        | off.mjDSBL_FRICTIONLOSS | off.mjDSBL_EQUALITY
+    )  # fmt: skip
+    model.opt.integrator = mujoco.mjtIntegrator.mjINT_RK4
+    model.opt.timestep = DT
+    extra = []
+    if model.opt.density or model.opt.viscosity:
+        model.opt.density, model.opt.viscosity = 0.0, 0.0
+        extra.append("fluid forces")
+    if np.any(model.body_gravcomp):
+        model.body_gravcomp[:] = 0.0
+        extra.append("gravity compensation")
+    spherical = [j for j in range(model.njnt) if int(model.jnt_type[j]) in (_FREE, _BALL)]
+    dofs = [
+        int(model.jnt_dofadr[j]) + k
+        for j in spherical
+        for k in range(3 if int(model.jnt_type[j]) == _BALL else 6)
+    ]
+    if (
+        np.any(model.dof_damping[dofs])
+        or np.any(model.dof_armature[dofs])
+        or np.any(model.jnt_stiffness[spherical])
+    ):
+        model.dof_damping[dofs], model.dof_armature[dofs] = 0.0, 0.0
+        model.jnt_stiffness[spherical] = 0.0
+        extra.append("ball and free joints' damping, armature and stiffness")
+    return model, extra
+
+
+def start(model, seed):
+    """A state near the model's home pose: hinges turned by up to 0.3 rad, slides moved by
+    about 5 cm, balls and free joints turned by 0.3 rad about random axes, speeds of about
+    0.5 rad/s or m/s."""
+    rng = np.random.default_rng(seed)
+    qpos = model.qpos0.copy()
+    for j in range(model.njnt):
+        a, kind = int(model.jnt_qposadr[j]), int(model.jnt_type[j])
+        if kind == _HINGE:
+            qpos[a] += rng.uniform(-0.3, 0.3)
+        elif kind in (_FREE, _BALL):
+            q = a + (3 if kind == _FREE else 0)
+            if kind == _FREE:
+                qpos[a : a + 3] += 0.1 * rng.normal(size=3)
+            axis = rng.normal(size=3)
+            turn = np.concatenate([[np.cos(0.15)], np.sin(0.15) * axis / np.linalg.norm(axis)])
+            qpos[q : q + 4] = _quaternion_product(qpos[q : q + 4], turn)
+        else:
+            qpos[a] += 0.05 * rng.normal()
+    return qpos, 0.5 * rng.normal(size=model.nv)
+
+
+def _quaternion_product(a, b):
+    w1, v1, w2, v2 = a[0], a[1:], b[0], b[1:]
+    return np.concatenate([[w1 * w2 - v1 @ v2], w1 * v2 + w2 * v1 + np.cross(v1, v2)])
+
+
+def aligned(model, reference, qpos):
+    """`qpos` with each quaternion's sign that of `reference`'s (q and -q are one turn)."""
+    out = np.array(qpos, copy=True)
+    for j in range(model.njnt):
+        kind, a = int(model.jnt_type[j]), int(model.jnt_qposadr[j])
+        if kind in (_FREE, _BALL):
+            s = slice(a + 3, a + 7) if kind == _FREE else slice(a, a + 4)
+            if reference[s] @ out[s] < 0:
+                out[s] = -out[s]
+    return out
+
+
+def imported(model):
+    """`(scene, what the import leaves out)`, or a `ValueError` naming why it refuses."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # the list of what is left out is recorded instead
+        parts = bd.parts_from_mjcf(model, passive=True)
+        return bd.Scene.from_mjcf(model, passive=True, gravity=True), list(parts.ignored)
+
+
+def metric_error(model, data, scene, held):
+    """`|P^T G P - M| / |M|` (Frobenius) at `data`'s state: G bundledyn's metric, M
+    MuJoCo's mass matrix (`mj_fullM`), P the map from `qvel` to bundledyn's velocities."""
+    import mujoco
+
+    system = scene.system
+
+    def velocities(qvel):
+        state = bd.state_from_mujoco(system, data.qpos, qvel, qpos0=model.qpos0, free_root=not held)
+        return state.qdot if held else jnp.concatenate([state.xi, state.qdot])
+
+    P = np.asarray(jax.jacfwd(velocities)(jnp.asarray(data.qvel)))
+    state = bd.state_from_mujoco(
+        system, data.qpos, data.qvel, qpos0=model.qpos0, free_root=not held
+    )
+    G = np.asarray(system.metric(state.q))
+    ours = P.T @ (G[6:, 6:] if held else G) @ P
+    M = np.zeros((model.nv, model.nv))
+    mujoco.mj_fullM(model, data, M)
+    return float(np.linalg.norm(ours - M) / np.linalg.norm(M)), state
+
+
+def mujoco_rollout(model, data, t1):
+    """MuJoCo's `(qpos, qvel)` after `t1` seconds of RK4 steps from `data`, and the time."""
+    import mujoco
+
+    began = time.perf_counter()
+    for _ in range(round(t1 / model.opt.timestep)):
+        mujoco.mj_step(model, data)
+    return data.qpos.copy(), data.qvel.copy(), time.perf_counter() - began
+
+
+def bundledyn_rollout(scene, state, t1):
+    """bundledyn's final state after `t1` seconds at `TOLERANCE`, its steps, and the times
+    of a first call (compiling) and a second."""
+    times = []
+    for _ in range(2):
+        began = time.perf_counter()
+        traj = bd.simulate(scene, state, t1, rtol=TOLERANCE, atol=TOLERANCE, max_steps=200_000)
+        jax.block_until_ready(traj.g)
+        times.append(time.perf_counter() - began)
+    end = bd.State(traj.g[-1], traj.q[-1], traj.xi[-1], traj.qdot[-1])
+    return end, int(traj.stats["num_steps"]), times
+
+
+def survey(file, *, t1, seed, repeats):
+    """The survey's entry for one model file."""
+    import mujoco
+
+    model = mujoco.MjModel.from_xml_path(str(file.path))
+    entry = {"name": file.name, "nv": int(model.nv), "nbody": int(model.nbody) - 1}
+    try:
+        scene, ignored = imported(model)
+    except ValueError as error:
+        return entry | {"status": "refused", "reason": str(error)}
+    held = isinstance(scene.mode, bd.PrescribedBaseMode)
+    model, turned_off = comparable(model)
+    entry |= {"status": "imported", "base": "held" if held else "floating", "ignored": ignored}
+    entry["turned_off"] = ["contacts, limits, actuators, friction loss"] + turned_off
+    data = mujoco.MjData(model)
+    data.qpos[:], data.qvel[:] = start(model, seed)
+    mujoco.mj_forward(model, data)
+    entry["metric_error"], state = metric_error(model, data, scene, held)
+    timed = interleaved(
+        {
+            "field": scene_field_sampler(scene, state),
+            "mj_forward": data_forward_sampler(model, data),
+        },
+        repeats,
+    )
+    field, forward = (stats for _, stats in timed.values())
+    entry["field"] = {
+        "field": field,
+        "mj_forward": forward,
+        "ratio": field["median"] / forward["median"],
+    }
+    qpos, qvel, entry["mujoco_seconds"] = mujoco_rollout(model, data, t1)
+    end, entry["steps"], entry["seconds"] = bundledyn_rollout(scene, state, t1)
+    ours_qpos, ours_qvel = bd.state_to_mujoco(
+        scene.system, end, qpos0=model.qpos0, free_root=not held
+    )
+    entry["rollout_error"] = float(
+        max(
+            np.max(np.abs(aligned(model, qpos, np.asarray(ours_qpos)) - qpos)),
+            np.max(np.abs(np.asarray(ours_qvel) - qvel)),
+        )
+    )
+    entry["passed"] = (
+        entry["metric_error"] <= METRIC_GOAL and entry["rollout_error"] <= ROLLOUT_GOAL
+    )
+    return entry

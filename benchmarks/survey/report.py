@@ -1,0 +1,70 @@
+"""The survey's markdown (and its diagram: the field's cost over `mj_forward`'s against
+the number of degrees of freedom, log–log) from a run's JSON."""
+
+import statistics
+
+from benchmarks._report import provenance_lines, versions
+from benchmarks.survey.measure import METRIC_GOAL, ROLLOUT_GOAL
+
+
+def _reason(entry):
+    """The first sentence of a refusal: what the model has that bundledyn refuses."""
+    text = " ".join(entry["reason"].split())
+    return text.split(";")[0].split(". ")[0].replace("|", "/")
+
+
+def _row(entry):
+    if entry["status"] != "imported":
+        return f"| {entry['name']} | {entry.get('nv', '')} | {entry['status']}: {_reason(entry)} | | | | | |"
+    field = entry["field"]
+    off = "; ".join(entry["turned_off"][1:]) or "–"
+    verdict = "yes" if entry["passed"] else "**no**"
+    return (
+        f"| {entry['name']} | {entry['nv']} | {entry['base']} | {entry['metric_error']:.1e} | "
+        f"{entry['rollout_error']:.1e} {verdict} | {field['ratio']:.1f} ({field['field']['median'] * 1e6:.3g} µs) | "
+        f"{entry['seconds'][1]:.2f} s, {entry['steps']} steps ({entry['seconds'][0]:.1f} s first) / "
+        f"{entry['mujoco_seconds']:.2f} s | {off} |"
+    )
+
+
+def summary(report):
+    models = report["models"]
+    imported = [m for m in models if m["status"] == "imported"]
+    passed = [m for m in imported if m["passed"]]
+    ratios = [m["field"]["ratio"] for m in imported]
+    lines = [
+        f"{len(models)} model files: {len(imported)} import, {len(passed)} of them equal MuJoCo "
+        f"(metric to {METRIC_GOAL:g} relative, {report['horizon']:g} s rollout to "
+        f"{ROLLOUT_GOAL:g} in qpos and qvel); {len(models) - len(imported)} refused or failed.",
+    ]
+    if ratios:
+        worst = max(imported, key=lambda m: m["field"]["ratio"])
+        lines[0] += (
+            f" The field costs {statistics.median(ratios):.1f}× `mj_forward` (median), "
+            f"{worst['field']['ratio']:.1f}× at worst ({worst['name']}, {worst['nv']} DoF)."
+        )
+    return lines
+
+
+def markdown(report):
+    env = report["environment"]
+    lines = [
+        "# Every MuJoCo model of dm_control and gymnasium, imported",
+        "",
+        *provenance_lines(report),
+        f"Packages: {versions(env)}. Each model with its passive forces and gravity as it has "
+        f"them (`Scene.from_mjcf(path, passive=True, gravity=True)`), from a state near its "
+        f"home pose; MuJoCo with contacts, limits, actuators and friction loss off, RK4 at "
+        f"dt = 1e-4, and what the import leaves out (last column) off too; bundledyn at rtol = "
+        f"atol = 1e-12. The field's time is a median over {report['repeats']} samples, in "
+        "alternation with `mj_forward` on the same state; the solve's the second call's.",
+        "",
+        *summary(report),
+        "",
+        "| model | DoF | base | metric error | rollout error, within goal | field / mj_forward "
+        "(field µs) | bundledyn solve / MuJoCo RK4 | also off in MuJoCo |",
+        "|---|---|---|---|---|---|---|---|",
+        *(_row(entry) for entry in report["models"]),
+        "",
+    ]
+    return "\n".join(lines)
