@@ -3,7 +3,7 @@
 import importlib.metadata
 
 from . import checks, identify, lie, stress
-from ._batches import DeviceBatch, vmap_over_devices
+from ._batches import DeviceBatch, Lockstep, vmap_over_devices
 from ._coupled_effects import OnFullShape, OnFullShapePotential, on_full_shape
 from ._dynamics import (
     BundleGeometry,
@@ -275,6 +275,7 @@ __all__ = [
     "SceneTerm",
     "ShapeDamper",
     "DeviceBatch",
+    "Lockstep",
     "vmap_over_devices",
     "SitePath",
     "TendonDamper",

@@ -6,10 +6,17 @@ becomes a cross-device all-reduce at every step. `shard_map` around the vmapped 
 gives each device its own loop over its own members, with no collective inside it
 (`jax.shard_map`; diffrax issue #407). The batch is padded with copies of its last member
 to a multiple of the device count, and the padding stripped from the results.
+
+Within a device the members still move in lockstep: the vmapped loop runs until its
+slowest member is done. `DeviceBatch.lockstep` reports what that costs for given step
+counts; a predicted cost per member (`cost=`) sorts the members so that each device's share
+and each chunk (`chunk_size`) holds members of like cost.
 """
 
 import inspect
+import time
 from collections.abc import Callable
+from typing import NamedTuple
 
 import equinox as eqx
 import jax
@@ -17,7 +24,7 @@ import jax.numpy as jnp
 import numpy as np
 from jax.sharding import Mesh, PartitionSpec
 
-__all__ = ["DeviceBatch", "vmap_over_devices"]
+__all__ = ["DeviceBatch", "Lockstep", "vmap_over_devices"]
 
 _AXIS = "batch"
 
@@ -54,6 +61,24 @@ def _batch_size(tree) -> int:
     return sizes.pop()
 
 
+def _rows(tree, rows):
+    return jax.tree.map(lambda x: jnp.take(jnp.asarray(x), rows, axis=0), tree)
+
+
+class Lockstep(NamedTuple):
+    r"""What lockstep costs a batch (`DeviceBatch.lockstep`).
+
+    **Fields:** `taken`, the steps each member's share ran (its slowest member's, per
+    member in the batch's order); `needed`, the members' own steps; `overhead`, the steps
+    the devices ran over the steps the members needed, $\sum_{\rm shares} n_s \max_s /
+    \sum_i k_i$ (padding included: a padded row runs its copy's steps).
+    """
+
+    taken: np.ndarray
+    needed: np.ndarray
+    overhead: float
+
+
 class DeviceBatch:
     """The batched function `vmap_over_devices` returns (see there).
 
@@ -62,7 +87,15 @@ class DeviceBatch:
     what each device runs); `mesh`.
     """
 
-    def __init__(self, fn: Callable, mesh: Mesh, keep_sharded: bool, in_axes: tuple):
+    def __init__(
+        self,
+        fn: Callable,
+        mesh: Mesh,
+        keep_sharded: bool,
+        in_axes: tuple,
+        chunk_size: int | None = None,
+        progress: bool = False,
+    ):
         axis = mesh.axis_names[0]
 
         def program(args):
@@ -86,23 +119,110 @@ class DeviceBatch:
         self.mesh = mesh
         self.keep_sharded = keep_sharded
         self.in_axes = in_axes
+        self.chunk_size = chunk_size
+        self.progress = progress
 
-    def __call__(self, *args):
+    def __call__(self, *args, cost=None):
+        """`jax.vmap(fn)(*args)`, spread over the devices (and over chunks of
+        `chunk_size` members, one after the other).
+
+        **Arguments:**
+
+        - `*args`: the arguments, batched along their first axis where `in_axes` says 0.
+        - `cost`: optional, a predicted cost per member (e.g. the steps of a loose pilot
+          solve, or an energy): the members are run sorted by it, so that each device's
+          share and each chunk holds members of like cost; the results come back in the
+          batch's order. A NumPy array (it decides the layout, so it is not traced).
+
+        **Returns:**
+
+        The results of `jax.vmap(fn)` on one device, to rounding.
+        """
         if len(args) != len(self.in_axes):
             raise ValueError(
                 f"`in_axes` names {len(self.in_axes)} arguments; the call gives {len(args)}."
             )
-        batched = tuple(x for x, a in zip(args, self.in_axes, strict=True) if a == 0)
-        size = _batch_size(batched)
-        devices = self.mesh.devices.size
-        padded = tuple(
-            _padded(x, -(-size // devices) * devices) if a == 0 else x
-            for x, a in zip(args, self.in_axes, strict=True)
+        size = _batch_size(tuple(x for x, a in zip(args, self.in_axes, strict=True) if a == 0))
+        order = self._order(size, cost)
+        if order is not None:
+            args = tuple(
+                _rows(x, order) if a == 0 else x for x, a in zip(args, self.in_axes, strict=True)
+            )
+        starts = range(0, size, self._chunk(size))
+        outs = [
+            self._run_chunk(args, begin, size, k, len(starts)) for k, begin in enumerate(starts)
+        ]
+        out = (
+            jax.tree.map(lambda *parts: jnp.concatenate(parts), *outs) if len(outs) > 1 else outs[0]
         )
-        out = jax.tree.map(lambda x: x[:size], self.program(padded))
+        if order is not None:
+            out = _rows(out, np.argsort(order))
         if self.keep_sharded:
             return out
         return jax.device_put(out, jax.local_devices()[0])
+
+    def _chunk(self, size: int) -> int:
+        return min(self.chunk_size or size, size)
+
+    def _order(self, size: int, cost) -> np.ndarray | None:
+        if cost is None:
+            return None
+        cost = np.asarray(cost)
+        if cost.shape != (size,):
+            raise ValueError(f"`cost` is one number per member: shape ({size},), got {cost.shape}.")
+        # The costliest first: the padding copies the last member, then the cheapest.
+        return np.argsort(-cost, kind="stable")
+
+    def _run_chunk(self, args, begin: int, size: int, k: int, chunks: int):
+        """The results of members `begin : begin + chunk` (padded to the chunk's size
+        rounded up to the device count: every chunk runs one program)."""
+        chunk = self._chunk(size)
+        end = min(begin + chunk, size)
+        rows = -(-chunk // self.mesh.devices.size) * self.mesh.devices.size
+        padded = tuple(
+            _padded(jax.tree.map(lambda x: jnp.asarray(x)[begin:end], x), rows) if a == 0 else x
+            for x, a in zip(args, self.in_axes, strict=True)
+        )
+        started = time.perf_counter()
+        out = jax.tree.map(lambda x: x[: end - begin], self.program(padded))
+        if self.progress:
+            jax.block_until_ready(out)
+            print(
+                f"chunk {k + 1}/{chunks}: members {begin}-{end - 1} of {size} "
+                f"in {time.perf_counter() - started:.2f} s",
+                flush=True,
+            )
+        return out
+
+    def lockstep(self, steps, *, cost=None) -> Lockstep:
+        r"""What lockstep costs this batch's layout, for the members' step counts.
+
+        **Arguments:**
+
+        - `steps`: each member's own steps (e.g. a solve's `stats["num_steps"]`), in the
+          batch's order.
+        - `cost`: the predicted cost the batch is (or would be) called with, if any.
+
+        **Returns:**
+
+        A `Lockstep`: the steps each member's share ran, the steps it needed, and the
+        overhead $\ge 1$.
+        """
+        needed = np.asarray(steps, dtype=float)
+        size, devices = needed.shape[0], self.mesh.devices.size
+        order = self._order(size, cost)
+        order = np.arange(size) if order is None else order
+        chunk = self._chunk(size)
+        rows = -(-chunk // devices) * devices
+        taken, work = np.empty(size), 0.0
+        for begin in range(0, size, chunk):
+            members = order[begin : begin + chunk]
+            padded = np.concatenate([members, np.repeat(members[-1:], rows - members.size)])
+            for share in padded.reshape(devices, -1):
+                slowest = needed[share].max()
+                work += share.size * slowest
+                taken[share] = slowest
+        return Lockstep(taken, needed, work / needed.sum())
 
 
 def vmap_over_devices(
@@ -111,6 +231,8 @@ def vmap_over_devices(
     in_axes: int | tuple[int | None, ...] = 0,
     mesh: Mesh | None = None,
     keep_sharded: bool = False,
+    chunk_size: int | None = None,
+    progress: bool = False,
 ) -> DeviceBatch:
     r"""`jax.vmap(fn)`, its batch spread over devices, each running its share on its own.
 
@@ -131,6 +253,10 @@ def vmap_over_devices(
     - `mesh`: a one-axis `jax.sharding.Mesh`; default, every local device.
     - `keep_sharded`: leave the results on the devices, sharded along the batch (for a
       further sharded computation), instead of gathering them on the first device.
+    - `chunk_size`: run the batch `chunk_size` members at a time, one chunk after the
+      other (all chunks one program): for a batch larger than the devices' memory, for
+      progress along a long batch, and with `cost=` to bound the lockstep within a device.
+    - `progress`: print each chunk's members and time as it ends.
 
     **Returns:**
 
@@ -150,4 +276,6 @@ def vmap_over_devices(
             f"`vmap_over_devices` spreads one batch axis: give a mesh with one axis, got "
             f"axes {mesh.axis_names}."
         )
-    return DeviceBatch(fn, mesh, keep_sharded, axes)
+    if chunk_size is not None and chunk_size < 1:
+        raise ValueError(f"`chunk_size` is a number of members, at least 1; got {chunk_size}.")
+    return DeviceBatch(fn, mesh, keep_sharded, axes, chunk_size, progress)

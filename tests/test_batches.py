@@ -81,6 +81,10 @@ conditions = lambda system, q: bd.checks.galilean_conditions(system, q).residual
 shared = bd.vmap_over_devices(conditions, in_axes=(None, 0))(scene.system, shapes)
 shared_on_one = jax.jit(jax.vmap(lambda q: conditions(scene.system, q)))(shapes)
 report = bd.checks.galilean_invariance(scene.system, jax.random.key(3), n=6)
+cost = np.asarray(steps1)
+chunked = bd.vmap_over_devices(final, chunk_size=4, progress=True)
+g_sorted, steps_sorted = chunked(xi, cost=cost)
+through_sorted = jax.grad(lambda x: jnp.sum(chunked(x, cost=cost)[0][:, :3, 3] ** 2))(xi)
 print(json.dumps({
     "devices": len(jax.devices()),
     "poses": float(jnp.max(jnp.abs(g - g1))),
@@ -93,6 +97,10 @@ print(json.dumps({
     "traced": [same_size, new_size],
     "invariance": float(jnp.max(jnp.abs(shared - shared_on_one))),
     "invariance_passed": bool(report.passed),
+    "sorted": float(jnp.max(jnp.abs(g_sorted - g1))),
+    "sorted_steps": np.asarray(steps_sorted).tolist(),
+    "through_sorted": float(jnp.max(jnp.abs(through_sorted - gradients1))),
+    "overhead": [batched.lockstep(cost).overhead, chunked.lockstep(cost, cost=cost).overhead],
 }))
 """
 
@@ -103,7 +111,8 @@ def on_four_devices():
         [sys.executable, "-c", PROGRAM], capture_output=True, text=True, timeout=600
     )
     assert done.returncode == 0, done.stderr[-3000:]
-    return json.loads(done.stdout.splitlines()[-1])
+    lines = done.stdout.splitlines()
+    return json.loads(lines[-1]) | {"progress": lines[:-1]}
 
 
 @four_devices
@@ -135,6 +144,40 @@ def test_invariance_residuals_over_four_devices_are_the_one_device_ones(on_four_
     assert on_four_devices["invariance_passed"]
 
 
+@four_devices
+def test_members_sorted_by_cost_and_run_in_chunks_come_back_in_order(on_four_devices):
+    """`cost=` runs the members costliest first, `chunk_size=4` four at a time (two chunks
+    of the six, each over the four devices): the results and the gradients through them
+    are the one-device batch's, in the batch's order, and each chunk says when it ends."""
+    r = on_four_devices
+    assert r["sorted"] < 1e-13 and r["through_sorted"] < 1e-13
+    assert r["sorted_steps"] == r["steps_on_one"]
+    assert [line.split(" in ")[0] for line in r["progress"]] == [
+        "chunk 1/2: members 0-3 of 6",
+        "chunk 2/2: members 4-5 of 6",
+    ] * 2  # the call, and the forward pass of the gradient through it
+    plain, sorted_in_chunks = r["overhead"]
+    assert 1.0 <= sorted_in_chunks < plain
+
+
+def test_the_lockstep_overhead_is_the_steps_each_share_runs_over_those_needed():
+    """Ten members on one device in chunks of three: each chunk runs to its slowest
+    member, and the last chunk's padding copies its last member. In the batch's order,
+    (34 + 40 + 71 + 10) × 3 = 465 steps for 319 needed; sorted by cost, costliest first,
+    (71 + 34 + 23 + 10) × 3 = 414."""
+    steps = np.array([24, 34, 23, 40, 19, 26, 71, 11, 61, 10])
+    batch = bd.vmap_over_devices(lambda x: x, chunk_size=3)
+    assert batch.mesh.devices.size == 1
+    plain = batch.lockstep(steps)
+    np.testing.assert_array_equal(plain.taken, [34, 34, 34, 40, 40, 40, 71, 71, 71, 10])
+    assert plain.overhead == pytest.approx(465 / 319, rel=1e-15)
+    sorted_by_cost = batch.lockstep(steps, cost=steps)
+    np.testing.assert_array_equal(sorted_by_cost.taken, [34, 34, 23, 71, 23, 34, 71, 23, 71, 10])
+    assert sorted_by_cost.overhead == pytest.approx(414 / 319, rel=1e-15)
+    whole = bd.vmap_over_devices(lambda x: x).lockstep(steps)
+    assert whole.overhead == pytest.approx(71 * 10 / 319, rel=1e-15)
+
+
 def test_what_cannot_be_spread_is_refused_with_the_fix():
     batched = bd.vmap_over_devices(lambda x, y: x + y)
     with pytest.raises(ValueError, match="of one size.*Close over what is not batched"):
@@ -144,3 +187,7 @@ def test_what_cannot_be_spread_is_refused_with_the_fix():
         bd.vmap_over_devices(lambda x: x, mesh=mesh)
     with pytest.raises(ValueError, match="at least one 0"):
         bd.vmap_over_devices(lambda x, y: x, in_axes=(None, None))
+    with pytest.raises(ValueError, match="one number per member"):
+        bd.vmap_over_devices(lambda x: x)(jnp.zeros(3), cost=np.zeros(4))
+    with pytest.raises(ValueError, match="at least 1"):
+        bd.vmap_over_devices(lambda x: x, chunk_size=0)
