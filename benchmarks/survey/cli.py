@@ -43,7 +43,8 @@ def _line(entry):
         return f"{entry['status']}: {entry['reason'].splitlines()[-1][:120]}"
     return (
         f"{entry['nv']} DoF, metric {entry['metric_error']:.1e}, rollout "
-        f"{entry['rollout_error']:.1e}, field {entry['field']['ratio']:.1f}x mj_forward, "
+        f"{entry['rollout_error']:.1e} / {entry['fine_rollout_error']:.1e} (RK4's own "
+        f"{entry['rk4_error']:.1e}), field {entry['field']['ratio']:.1f}x mj_forward, "
         f"{entry['seconds'][1]:.1f} s ({entry['steps']} steps) vs MuJoCo {entry['mujoco_seconds']:.1f} s"
     )
 
