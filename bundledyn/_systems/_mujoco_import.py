@@ -18,8 +18,11 @@ resolves it) and build a `Multibody`:
   MuJoCo's `qpos`. Links follow MuJoCo's body order, so $q$ and $\dot q$ follow MuJoCo's
   joint order. Several bodies under the worldbody (a finger and its spinner, a cup and its
   ball, an arm and the object it pushes) are several trees hanging from the same held
-  world, each attached by joints or welded; a body welded to the world never moves and is
-  not a bundledyn body. Several trees of which one floats freely are refused.
+  world, each attached by joints, welded or free; a body welded to the world never moves
+  and is not a bundledyn body. The free joint of such a tree (dm_control's dog and its
+  ball) is three slides along the world's axes and a ball joint at the body's origin: six
+  shape coordinates for `qpos`'s seven entries, with MuJoCo's velocities (linear in the
+  world's axes, angular in the body's).
 - **Joints** (axes and anchors in the child frame, MuJoCo's `jnt_axis` / `jnt_pos`):
   hinge → `Revolute`, slide → `Prismatic`, ball → `Spherical`; two hinges on one body whose
   axes intersect and are not parallel → `Universal` (anchored at the intersection); any
@@ -38,8 +41,7 @@ resolves it) and build a `Multibody`:
   $q = 0$ is the home pose; pass `qpos0=model.qpos0` to the converters when a model has
   non-zero refs (importing one warns).
 
-Not supported (`ValueError` naming the element and the fix): several trees of which one
-floats freely, free joints below the root
+Not supported (`ValueError` naming the element and the fix): free joints below a root
 (MuJoCo itself rejects those), equality constraints other than joint couplings, spatial
 tendons, the armature of
 tendons, bodies without mass that carry joints, and a root body without mass; when the
@@ -334,7 +336,11 @@ def _single_joint(model, j):
         return Prismatic(axis)
     if jtype == _BALL:
         return Spherical(anchor)
-    raise AssertionError(f"unexpected joint type {jtype}")  # free joints are refused earlier
+    # A free joint of one of several trees, on the held world: MuJoCo's free joint moves
+    # the body to its qpos position, then turns it by its quaternion, both in the world's
+    # axes, with the linear velocity in the world's axes and the angular in the body's:
+    # three slides along the world's axes, then a ball joint at the body's origin.
+    return Composite([*(Prismatic(e) for e in np.eye(3)), Spherical(np.zeros(3))])
 
 
 def _universal_anchor(model, j1, j2):
@@ -399,19 +405,9 @@ def _check_unsupported(model, passive: bool):
     roots = [b for b in range(1, model.nbody) if model.body_parentid[b] == 0]
     if not roots:
         raise ValueError("the model has no body under the worldbody: nothing to import.")
-    floating = [b for b in roots if _free_root(model, b)]
-    if len(roots) > 1 and floating:
-        names = ", ".join(f"'{_name(model, 'body', b)}'" for b in floating)
-        raise ValueError(
-            f"the worldbody holds {len(roots)} trees and {names} of them float freely; "
-            "bundledyn imports several trees when each hangs from the world (by hinges, "
-            "slides or a ball joint, or welded), as one system on the held world, or one "
-            "floating tree alone. Import each floating tree as its own model, or attach the "
-            "free ones to the world by joints."
-        )
     for j in range(model.njnt):
         b = int(model.jnt_bodyid[j])
-        if int(model.jnt_type[j]) == _FREE and b not in floating:
+        if int(model.jnt_type[j]) == _FREE and b not in roots:
             raise ValueError(
                 f"free joint {_joint_label(model, j)} on body '{_name(model, 'body', b)}' "
                 "below the root: only the root body may float freely. Remove the free joint "
@@ -607,6 +603,10 @@ def parts_from_mjmodel(model, *, passive: bool = False) -> ModelParts:
     for b in range(first, model.nbody):
         p = int(model.body_parentid[b])
         local = _pose_np(model.body_pos[b], model.body_quat[b])
+        if attached and _free_root(model, b):
+            # Its free joint sets the whole pose from qpos: the home placement is the home
+            # position (qpos0), unturned, so that the ball joint's turn is qpos's quaternion.
+            local = _pose_np(model.body_pos[b], np.array([1.0, 0.0, 0.0, 0.0]))
         if p in index:
             parent, placement = index[p], local
         else:
@@ -632,9 +632,12 @@ def parts_from_mjmodel(model, *, passive: bool = False) -> ModelParts:
             continue
         for j in joints:
             dof = int(model.jnt_dofadr[j])
+            if int(model.jnt_type[j]) == _FREE and np.any(model.qpos0[model.jnt_qposadr[j] :][:3]):
+                refs.append(f"'{_name(model, 'joint', j)}' (free, home position)")
             if int(model.jnt_type[j]) not in (_HINGE, _SLIDE):
+                dof = 6 if int(model.jnt_type[j]) == _FREE else 3
                 for values in (armature, damping, stiffness, rest):
-                    values += [0.0, 0.0, 0.0]
+                    values += [0.0] * dof
                 continue
             address = int(model.jnt_qposadr[j])
             coordinate[j] = len(armature)
