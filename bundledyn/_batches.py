@@ -22,6 +22,7 @@ import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
+from jax.experimental import multihost_utils
 from jax.sharding import Mesh, PartitionSpec
 
 __all__ = ["DeviceBatch", "Lockstep", "vmap_over_devices"]
@@ -59,6 +60,14 @@ def _batch_size(tree) -> int:
             "is not batched (e.g. `lambda state: f(scene, state)`)."
         )
     return sizes.pop()
+
+
+def _on_this_host(x):
+    """`x` on this process's first device: gathered from every process's devices where
+    other processes hold some of it (under `jax.distributed`)."""
+    if not x.is_fully_addressable:
+        x = multihost_utils.process_allgather(x, tiled=True)
+    return jax.device_put(x, jax.local_devices()[0])
 
 
 def _rows(tree, rows):
@@ -159,7 +168,7 @@ class DeviceBatch:
             out = _rows(out, np.argsort(order))
         if self.keep_sharded:
             return out
-        return jax.device_put(out, jax.local_devices()[0])
+        return jax.tree.map(_on_this_host, out)
 
     def _chunk(self, size: int) -> int:
         return min(self.chunk_size or size, size)
@@ -250,9 +259,12 @@ def vmap_over_devices(
 
     - `fn`: a function of one member's arguments (pytrees), returning a pytree of arrays.
     - `in_axes`: 0 (every argument batched) or a tuple of 0 and None, one per argument.
-    - `mesh`: a one-axis `jax.sharding.Mesh`; default, every local device.
+    - `mesh`: a one-axis `jax.sharding.Mesh`; default, every device JAX sees: this
+      process's, and under `jax.distributed` every process's, each process giving the
+      same arguments and getting the whole results back.
     - `keep_sharded`: leave the results on the devices, sharded along the batch (for a
-      further sharded computation), instead of gathering them on the first device.
+      further sharded computation), instead of gathering them on this process's first
+      device.
     - `chunk_size`: run the batch `chunk_size` members at a time, one chunk after the
       other (all chunks one program): for a batch larger than the devices' memory, for
       progress along a long batch, and with `cost=` to bound the lockstep within a device.
@@ -264,7 +276,7 @@ def vmap_over_devices(
     one device, to rounding.
     """
     if mesh is None:
-        mesh = Mesh(np.array(jax.local_devices()), (_AXIS,))
+        mesh = Mesh(np.array(jax.devices()), (_AXIS,))
     axes = (in_axes,) * _arity(fn) if isinstance(in_axes, int) else tuple(in_axes)
     if not set(axes) <= {0, None} or 0 not in axes:
         raise ValueError(

@@ -1,9 +1,11 @@
 """The documentation site builds with `mkdocs build --strict`, and documents every public name."""
 
 import html
+import json
 import os
 import pathlib
 import re
+import socket
 import subprocess
 import sys
 from importlib import import_module
@@ -143,6 +145,42 @@ def test_the_batch_guide_shards_over_two_devices(tmp_path):
     out = run_example("docs/how-to/batches.md", tmp_path).splitlines()
     assert out[-2].count("CpuDevice") == 2
     assert float(out[-1]) < 1e-12
+
+
+def _free_port() -> int:
+    with socket.socket() as probe:
+        probe.bind(("localhost", 0))
+        return probe.getsockname()[1]
+
+
+@pytest.mark.slow  # three interpreters compiling a batch of rollouts
+def test_the_cluster_guide_runs_two_processes_as_one(tmp_path):
+    """The guide's program as two `jax.distributed` processes over localhost (two CPU
+    devices each: ten members on four devices, two of them in the other process) prints
+    what it prints as one process alone: every member's steps, which differ, and its final
+    position, to rounding."""
+    program = tmp_path / "batch.py"
+    program.write_text(first_python_block("docs/how-to/cluster.md"))
+    env = dict(
+        os.environ,
+        PYTHONPATH=os.pathsep.join([str(ROOT), os.environ.get("PYTHONPATH", "")]),
+        COORDINATOR=f"localhost:{_free_port()}",
+    )
+    run = [sys.executable, str(program)]
+    processes = [
+        subprocess.Popen(run + [str(i)], cwd=tmp_path, env=env, stdout=subprocess.PIPE, text=True)
+        for i in (0, 1)
+    ]
+    alone = subprocess.run(run, cwd=tmp_path, env=env, capture_output=True, text=True, timeout=600)
+    outputs = [p.communicate(timeout=600)[0].splitlines()[-3:] for p in processes]
+    assert all(p.returncode == 0 for p in processes) and alone.returncode == 0, alone.stderr
+    single = alone.stdout.splitlines()[-3:]
+    assert single[0] == "1 2" and [out[0] for out in outputs] == ["2 4", "2 4"]
+    steps = json.loads(single[1])
+    assert len(set(steps)) > 3
+    for out in outputs:
+        assert json.loads(out[1]) == steps
+        np.testing.assert_allclose(json.loads(out[2]), json.loads(single[2]), rtol=0, atol=1e-13)
 
 
 @pytest.mark.slow  # an identification fit
