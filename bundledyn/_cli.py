@@ -192,9 +192,18 @@ def run(args) -> int:
             "[time] t1 = 1.0 (docs/how-to/scene-files.md); `bundledyn check` and "
             "`bundledyn stress` take a model file as it is."
         )
+    if args.chunk_size is not None and args.batch is None:
+        raise _Failure("--chunk-size divides a batch: give the batch's file with --batch.")
     if bd.is_gyroscope_file(args.scene):
+        if args.batch is not None:
+            raise _Failure(
+                f"{args.scene}: --batch takes initial states (g, q, xi, qdot) of a scene "
+                "file; a gyroscope chain's file states its own."
+            )
         return _run_gyroscopes(bd.GyroscopeChainFile.load(args.scene), out, args)
     scene_file = bd.SceneFile.load(args.scene)
+    if args.batch is not None:
+        return _run_batch(scene_file, args, out)
     print(f"bundledyn run {scene_file.path}")
     traj, elapsed = _solve(scene_file, progress=args.progress)
     diagnostics = traj.diagnostics()
@@ -206,6 +215,119 @@ def run(args) -> int:
     for p in written:
         print(f"  wrote {p}")
     return 0
+
+
+_STATE_FIELDS = ("g", "q", "xi", "qdot")
+
+
+def _batch_fields(scene_file, path):
+    """A batch's initial states as `(g, q, xi, qdot)`, one member per row: the arrays an
+    `.npz` file holds under those names, the scene file's `[initial]` for those it lacks."""
+    import jax.numpy as jnp
+    import numpy as np
+
+    try:
+        with np.load(path) as data:
+            given = {name: np.asarray(data[name]) for name in data.files}
+    except (OSError, ValueError) as error:
+        raise _Failure(f"{path}: cannot read the batch of initial states ({error}).") from None
+    unknown = sorted(set(given) - set(_STATE_FIELDS))
+    if unknown or not given:
+        raise _Failure(
+            f"{path}: a batch of initial states holds arrays named {', '.join(_STATE_FIELDS)} "
+            f"(one member per row; the others from the scene file's [initial]), got "
+            f"{sorted(given) or 'none'}."
+        )
+    size = next(iter(given.values())).shape[:1]
+    fields = []
+    for name in _STATE_FIELDS:
+        one = getattr(scene_file.state, name)
+        x = jnp.asarray(given[name], one.dtype) if name in given else None
+        expected = (*size, *one.shape)
+        if x is not None and x.shape != expected:
+            raise _Failure(
+                f"{path}: `{name}` has shape {x.shape}; one member's is {one.shape} in this "
+                f"scene, so {size[0] if size else 'N'} members need {expected}."
+            )
+        fields.append(jnp.broadcast_to(one, expected) if x is None else x)
+    return tuple(fields)
+
+
+def _run_batch(scene_file, args, out) -> int:
+    """Simulate a scene file from every initial state of a batch, spread over the devices
+    (`vmap_over_devices`); print what lockstep cost and the energy's drift, write the
+    members' trajectories."""
+    import diffrax
+    import jax
+    import numpy as np
+
+    import bundledyn as bd
+
+    fields = _batch_fields(scene_file, args.batch)
+    size = fields[0].shape[0]
+    print(f"bundledyn run {scene_file.path} --batch {args.batch}")
+
+    def member(g, q, xi, qdot):
+        traj = scene_file.simulate(state=bd.State(g, q, xi, qdot), throw=False)
+        diagnostics = traj.diagnostics()
+        ok = traj.result == diffrax.RESULTS.successful
+        return (traj.ts, traj.g, traj.q, traj.xi, traj.qdot, diagnostics.energy,
+                diagnostics.spatial_momentum, traj.stats["num_steps"], ok)  # fmt: skip
+
+    batch = bd.vmap_over_devices(
+        member, chunk_size=args.chunk_size, progress=args.chunk_size is not None
+    )
+    start = time.perf_counter()
+    ts, g, q, xi, qdot, energy, momentum, steps, ok = jax.block_until_ready(batch(*fields))
+    elapsed = time.perf_counter() - start
+    failed = np.flatnonzero(~np.asarray(ok))
+    if failed.size:
+        raise _Failure(
+            f"{scene_file.path}: the solver stopped early for {_count(failed.size, 'member')} "
+            f"of the batch (rows {failed[:10].tolist()}); run one alone for the reason."
+        )
+    steps, energy = np.asarray(steps), np.asarray(energy)
+    lockstep = batch.lockstep(steps)
+    print(
+        f"  {_count(size, 'member')} on {_count(batch.mesh.devices.size, 'device')}"
+        + (f", {args.chunk_size} at a time" if args.chunk_size else "")
+        + f": {steps.min()}-{steps.max()} steps (median {np.median(steps):g}) of "
+        f"{type(scene_file.solver).__name__}, {elapsed:.1f} s including compilation; "
+        f"lockstep ran {lockstep.overhead:.2f}x the steps the members needed"
+    )
+    drift = np.abs(energy[:, -1] - energy[:, 0])
+    print(
+        f"  energy: largest E(t1) - E(t0) over the members {drift.max():.2e} (row {drift.argmax()})"
+    )
+    path = out / f"{pathlib.Path(scene_file.output['trajectory']).stem}_batch.npz"
+    _write_batch(path, scene_file, elapsed, lockstep.overhead,
+                 ts=ts[0], g=g, q=q, xi=xi, qdot=qdot, energy=energy,
+                 spatial_momentum=momentum, num_steps=steps)  # fmt: skip
+    print(f"  wrote {path}")
+    return 0
+
+
+def _write_batch(path, scene_file, elapsed, overhead, **arrays):
+    import numpy as np
+
+    from . import __version__
+    from ._files import atomic_path
+
+    metadata = {
+        "bundledyn": __version__,
+        "scene_file": str(scene_file.path),
+        "solver": type(scene_file.solver).__name__,
+        "options": scene_file.options,
+        "seconds": elapsed,
+        "lockstep_overhead": overhead,
+    }
+    with atomic_path(path) as tmp:
+        np.savez(
+            tmp,
+            **{k: np.asarray(v) for k, v in arrays.items()},
+            scene=np.array(scene_file.text),
+            metadata=np.array(json.dumps(metadata)),
+        )
 
 
 def _run_gyroscopes(chain_file, out, args) -> int:
@@ -391,6 +513,17 @@ def main(argv=None) -> int:
     p.add_argument("--out", default=".", help="existing folder for the outputs (default: here)")
     p.add_argument("--progress", action="store_true", help="show diffrax's progress meter")
     p.add_argument("--no-pictures", action="store_true", help="write the trajectory only")
+    p.add_argument(
+        "--batch",
+        help="an .npz of initial states (arrays g, q, xi, qdot, one member per row; the "
+        "others from the file's [initial]): every member is simulated, spread over the "
+        "devices, into <trajectory>_batch.npz",
+    )
+    p.add_argument(
+        "--chunk-size",
+        type=_positive(int),
+        help="with --batch: members at a time, with progress per chunk",
+    )
     p.set_defaults(run=run)
     p = commands.add_parser("check", help="Galilean-invariance report of a model")
     p.add_argument("model", help="an MJCF (.xml), URDF (.urdf) or scene (.toml) file")

@@ -752,18 +752,23 @@ class SceneFile:
         root.done()
         return cls(path, text, scene, state, t0, t1, saves, solver, options, solids, output)
 
-    def simulate(self, *, progress: bool = False, throw: bool = True) -> Trajectory:
+    def simulate(
+        self, *, state: State | None = None, progress: bool = False, throw: bool = True
+    ) -> Trajectory:
         """Run the scene: `simulate` with the file's solver and options, saving `saves` times.
 
         **Arguments:**
 
+        - `state`: the initial state; default, the file's `[initial]` (`SceneFile.state`).
+          Another (one member of a batch, under `jax.vmap`) is solved with the same
+          solver, options and saved times.
         - `progress`: show diffrax's progress meter.
         - `throw`: raise if the solve fails (else read `Trajectory.result`).
         """
         ts = jnp.linspace(self.t0, self.t1, self.saves)
         return simulate(
             self.scene,
-            self.state,
+            self.state if state is None else state,
             self.t1,
             t0=self.t0,
             solver=self.solver,
