@@ -14,7 +14,7 @@ from benchmarks.accuracy_cost.sweep import default_solver
 
 BENCHMARKS = {
     "accuracy_cost", "speed", "speed_gpu", "family", "identification", "stress", "nonholonomic",
-    "tensorial", "gravity",
+    "tensorial", "gravity", "survey", "devices",
 }  # fmt: skip
 
 
@@ -387,3 +387,42 @@ def test_the_identification_benchmark_poses_each_method_the_problem_that_made_th
     assert record.inputs is not None
     cubic = bd.identify.Inputs(record.inputs.ts, joint_forces=record.inputs.joint_forces)
     assert ours.cost_at(dc.replace(record, inputs=cubic), P_true) / start > 100 * ROUNDING
+
+
+@pytest.mark.parametrize("name", ["survey", "devices"])
+def test_survey_and_devices_reports_redraw_from_their_json(tmp_path, name):
+    """The committed results rebuild the same markdown (`--report-only`)."""
+    from importlib import import_module
+
+    (tmp_path / f"{name}.json").write_bytes((RESULTS / f"{name}.json").read_bytes())
+    import_module(f"benchmarks.{name}").main(["--report-only", "--out", str(tmp_path)])
+    assert (tmp_path / f"{name}.md").read_text() == (RESULTS / f"{name}.md").read_text()
+
+
+@pytest.mark.slow  # two models imported, compiled and solved beside MuJoCo
+def test_the_survey_compares_each_model_with_mujoco(tmp_path):
+    """The quick survey (bundledyn's two floating MJCF models, 0.1 s): both import, their
+    metric is MuJoCo's mass matrix to 1e-12 and their motion MuJoCo RK4's to 1e-9."""
+    from benchmarks import survey
+
+    report = survey.main(["--quick", "--out", str(tmp_path), "--repeats", "2"])
+    assert [m["status"] for m in report["models"]] == ["imported", "imported"]
+    assert all(m["passed"] and m["metric_error"] < 1e-12 for m in report["models"])
+    assert (
+        "2 model files: 2 import, 2 of them equal MuJoCo"
+        in (tmp_path / "survey_quick.md").read_text()
+    )
+
+
+@pytest.mark.slow  # a worker process per device count, each compiling the batch
+def test_the_devices_benchmark_spreads_the_batch_as_one_device_runs_it(tmp_path):
+    """The quick run (64 rollouts on 1 and 2 devices): each count's final poses are one
+    device's `jax.vmap`'s to rounding, with MuJoCo's rollout timed beside them."""
+    from benchmarks import devices
+
+    report = devices.main(["--quick", "--out", str(tmp_path)])
+    assert [entry["devices"] for entry in report["counts"]] == [1, 2]
+    for entry in report["counts"]:
+        method = entry["methods"]["RKMK87"]
+        assert method["difference_from_one_device"] < 1e-13 and method["lockstep_overhead"] >= 1
+        assert entry["methods"]["MuJoCo"]["rollouts_per_second"] > 0

@@ -11,7 +11,7 @@ them (`Scene.from_mjcf(path, passive=True, gravity=True)`), from a state near it
    and friction loss off, and whatever the import's warning says it leaves out (fluid
    forces, gravity compensation, the damping of ball joints) off too: the largest
    difference in `qpos` and `qvel` (goal 1e-9), bundledyn at rtol = atol = 1e-12; and
-   against RK4 at a quarter of the step, which judges the goal where RK4's own error at
+   against RK4 at an eighth of the step, which judges the goal where RK4's own error at
    1e-4 (the two MuJoCo runs' difference) exceeds it (small bodies, high frequencies);
 3. the field's time over `mj_forward`'s at the same state, in alternation, and the solve's
    time beside MuJoCo's.

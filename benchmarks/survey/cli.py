@@ -13,6 +13,7 @@ PACKAGES = ("bundledyn", "jax", "jaxlib", "diffrax", "numpy", "mujoco", "dm_cont
 def measure(quick, repeats):
     """Every model in a report; None without MuJoCo or the packages that hold the models."""
     from benchmarks._mujoco import float64_cpu_run_with_mujoco
+    from benchmarks.accuracy_cost.sweep import default_solver
     from benchmarks.family.cli import one_core
     from benchmarks.survey.measure import survey
     from benchmarks.survey.models import missing_packages, model_files, quick_files
@@ -27,7 +28,9 @@ def measure(quick, repeats):
         )
         return None
     t1 = 0.1 if quick else HORIZON
-    report = report_header(PACKAGES, quick, horizon=t1, repeats=repeats, models=[])
+    report = report_header(
+        PACKAGES, quick, horizon=t1, repeats=repeats, solver=default_solver().__name__, models=[]
+    )
     for seed, file in enumerate(quick_files() if quick else model_files()):
         try:
             entry = survey(file, t1=t1, seed=seed, repeats=repeats)

@@ -37,7 +37,7 @@ def summary(report):
         f"{len(models)} model files: {len(imported)} import, {len(passed)} of them equal MuJoCo "
         f"(metric to {METRIC_GOAL:g} relative, {report['horizon']:g} s rollout to "
         f"{ROLLOUT_GOAL:g} in qpos and qvel, against RK4 at dt = 1e-4 or, where that step's "
-        f"own error is larger, at 2.5e-5); {len(models) - len(imported)} refused or failed.",
+        f"own error is larger, at 1.25e-5); {len(models) - len(imported)} refused or failed.",
     ]
     if ratios:
         worst = max(imported, key=lambda m: m["field"]["ratio"])
@@ -57,14 +57,14 @@ def markdown(report):
         f"Packages: {versions(env)}. Each model with its passive forces and gravity as it has "
         f"them (`Scene.from_mjcf(path, passive=True, gravity=True)`), from a state near its "
         f"home pose; MuJoCo with contacts, limits, actuators and friction loss off, RK4 at "
-        f"dt = 1e-4, and what the import leaves out (last column) off too; bundledyn at rtol = "
-        f"atol = 1e-12. The field's time is a median over {report['repeats']} samples, in "
+        f"dt = 1e-4, and what the import leaves out (last column) off too; bundledyn's "
+        f"default solver ({report['solver']}) at rtol = atol = 1e-12. The field's time is a median over {report['repeats']} samples, in "
         "alternation with `mj_forward` on the same state; the solve's the second call's.",
         "",
         *summary(report),
         "",
         "| model | DoF | base | metric error | rollout error against RK4 at dt = 1e-4 / "
-        "at 2.5e-5 (RK4's own error at 1e-4), within goal | field / mj_forward "
+        "at 1.25e-5 (RK4's own error at 1e-4), within goal | field / mj_forward "
         "(field µs) | bundledyn solve / MuJoCo RK4 | also off in MuJoCo |",
         "|---|---|---|---|---|---|---|---|",
         *(_row(entry) for entry in report["models"]),

@@ -1,0 +1,3 @@
+from benchmarks.devices.cli import main
+
+main()
