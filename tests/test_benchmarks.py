@@ -405,7 +405,8 @@ def test_the_survey_compares_each_model_with_mujoco(tmp_path):
     metric is MuJoCo's mass matrix to 1e-12 and their motion MuJoCo RK4's to 1e-9."""
     from benchmarks import survey
 
-    report = survey.main(["--quick", "--out", str(tmp_path), "--repeats", "2"])
+    assert survey.main(["--quick", "--out", str(tmp_path), "--repeats", "2"]) == 0
+    report = json.loads((tmp_path / "survey_quick.json").read_text())
     assert [m["status"] for m in report["models"]] == ["imported", "imported"]
     assert all(m["passed"] and m["metric_error"] < 1e-12 for m in report["models"])
     assert (
@@ -417,12 +418,16 @@ def test_the_survey_compares_each_model_with_mujoco(tmp_path):
 @pytest.mark.slow  # a worker process per device count, each compiling the batch
 def test_the_devices_benchmark_spreads_the_batch_as_one_device_runs_it(tmp_path):
     """The quick run (64 rollouts on 1 and 2 devices): each count's final poses are one
-    device's `jax.vmap`'s to rounding, with MuJoCo's rollout timed beside them."""
+    device's `jax.vmap`'s, with MuJoCo's rollout timed beside them. At the batch's rtol
+    (5e-7) the adaptive steps carry the two programs' different rounding to about 1e-10
+    (under the suite's unoptimised compilation); `test_batches.py` shows the equality to
+    1e-13 at rtol 1e-10."""
     from benchmarks import devices
 
-    report = devices.main(["--quick", "--out", str(tmp_path)])
+    assert devices.main(["--quick", "--out", str(tmp_path)]) == 0
+    report = json.loads((tmp_path / "devices_quick.json").read_text())
     assert [entry["devices"] for entry in report["counts"]] == [1, 2]
     for entry in report["counts"]:
         method = entry["methods"]["RKMK87"]
-        assert method["difference_from_one_device"] < 1e-13 and method["lockstep_overhead"] >= 1
+        assert method["difference_from_one_device"] < 1e-9 and method["lockstep_overhead"] >= 1
         assert entry["methods"]["MuJoCo"]["rollouts_per_second"] > 0

@@ -21,12 +21,9 @@ def batch_settings():
 
 
 def measure(quick, repeats):
-    """Each device count in its own worker; None without MuJoCo."""
+    """Each device count in its own worker."""
     import bundledyn as bd
-    from benchmarks._mujoco import float64_cpu_run_with_mujoco
 
-    if not float64_cpu_run_with_mujoco():
-        return None
     settings, calibrated = batch_settings()
     if quick:
         settings = {"RKMK87": settings["RKMK87"]}
@@ -51,6 +48,7 @@ def _line(entry):
 
 
 def main(argv=None):
+    from benchmarks._mujoco import float64_cpu_run_with_mujoco
     from benchmarks.devices.report import markdown
 
     parser = _output.parser(DESCRIPTION, "64 rollouts, 1 and 2 devices, 2 repeats")
@@ -60,21 +58,13 @@ def main(argv=None):
     if args.worker:
         from benchmarks.devices.measure import measure_worker
 
-        settings, batch, repeats = (
-            json.loads(args.worker[0]),
-            int(args.worker[1]),
-            int(args.worker[2]),
-        )
-        print(json.dumps(measure_worker(settings, batch, repeats)))
+        settings, batch, repeats = args.worker
+        print(json.dumps(measure_worker(json.loads(settings), int(batch), int(repeats))))
         return 0
-    where = _output.destination(args, "devices", markdown)
-    if where is None:
-        return 0
-    out, name = where
-    report = measure(args.quick, args.repeats or (2 if args.quick else 5))
-    if report is None:
-        return 1
-    text = markdown(report)
-    print(text)
-    _output.write(out, name, report, text)
-    return report
+    return _output.run(
+        args,
+        "devices",
+        markdown,
+        lambda: measure(args.quick, args.repeats or (2 if args.quick else 5)),
+        ready=float64_cpu_run_with_mujoco,
+    )

@@ -6,27 +6,34 @@ from benchmarks import _output
 from benchmarks._provenance import report_header
 
 DESCRIPTION = "Every MJCF model of dm_control and gymnasium, imported and compared with MuJoCo."
-HORIZON = 1.0  # seconds: the issue's rollout
+HORIZON = 1.0  # seconds of motion compared with MuJoCo's
 PACKAGES = ("bundledyn", "jax", "jaxlib", "diffrax", "numpy", "mujoco", "dm_control", "gymnasium")
 
 
-def measure(quick, repeats):
-    """Every model in a report; None without MuJoCo or the packages that hold the models."""
+def ready(quick) -> bool:
+    """Whether MuJoCo is there and, for a full run, the packages that hold the models."""
     from benchmarks._mujoco import float64_cpu_run_with_mujoco
-    from benchmarks.accuracy_cost.sweep import default_solver
-    from benchmarks.family.cli import one_core
-    from benchmarks.survey.measure import survey
-    from benchmarks.survey.models import missing_packages, model_files, quick_files
+    from benchmarks.survey.models import missing_packages
 
-    one_core()
     if not float64_cpu_run_with_mujoco():
-        return None
+        return False
     if not quick and missing_packages():
         print(
             f"{', '.join(missing_packages())} not installed: their model files are the survey "
             "(pip install --no-deps dm_control gymnasium)"
         )
-        return None
+        return False
+    return True
+
+
+def measure(quick, repeats):
+    """Every model in a report."""
+    from benchmarks.accuracy_cost.sweep import default_solver
+    from benchmarks.family.cli import one_core
+    from benchmarks.survey.measure import survey
+    from benchmarks.survey.models import model_files, quick_files
+
+    one_core()
     t1 = 0.1 if quick else HORIZON
     report = report_header(
         PACKAGES, quick, horizon=t1, repeats=repeats, solver=default_solver().__name__, models=[]
@@ -58,14 +65,10 @@ def main(argv=None):
     parser = _output.parser(DESCRIPTION, "bundledyn's two floating MJCF models, 0.1 s")
     parser.add_argument("--repeats", type=int, help="timed repeats of the field (default 3)")
     args = parser.parse_args(argv)
-    where = _output.destination(args, "survey", markdown)
-    if where is None:
-        return 0
-    out, name = where
-    report = measure(args.quick, args.repeats or 3)
-    if report is None:
-        return 1
-    text = markdown(report)
-    print(text)
-    _output.write(out, name, report, text)
-    return report
+    return _output.run(
+        args,
+        "survey",
+        markdown,
+        lambda: measure(args.quick, args.repeats or 3),
+        ready=lambda: ready(args.quick),
+    )
