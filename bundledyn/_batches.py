@@ -22,6 +22,7 @@ import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
+from jax.core import Tracer
 from jax.experimental import multihost_utils
 from jax.sharding import Mesh, PartitionSpec
 
@@ -70,6 +71,18 @@ def _on_this_host(x):
     return jax.device_put(x, jax.local_devices()[0])
 
 
+def _reported_memory(mesh: Mesh) -> int | None:
+    """The least memory a device of `mesh` has free, as it reports it (GPUs and TPUs do;
+    a CPU does not: None)."""
+    free = []
+    for device in mesh.devices.flat:
+        stats = device.memory_stats()
+        if not stats or "bytes_limit" not in stats:
+            return None
+        free.append(stats["bytes_limit"] - stats.get("bytes_in_use", 0))
+    return min(free)
+
+
 def _rows(tree, rows):
     return jax.tree.map(lambda x: jnp.take(jnp.asarray(x), rows, axis=0), tree)
 
@@ -104,6 +117,7 @@ class DeviceBatch:
         in_axes: tuple,
         chunk_size: int | None = None,
         progress: bool = False,
+        memory_limit: int | None = None,
     ):
         axis = mesh.axis_names[0]
 
@@ -130,6 +144,7 @@ class DeviceBatch:
         self.in_axes = in_axes
         self.chunk_size = chunk_size
         self.progress = progress
+        self.memory_limit = memory_limit
 
     def __call__(self, *args, cost=None):
         """`jax.vmap(fn)(*args)`, spread over the devices (and over chunks of
@@ -192,6 +207,7 @@ class DeviceBatch:
             _padded(jax.tree.map(lambda x: jnp.asarray(x)[begin:end], x), rows) if a == 0 else x
             for x, a in zip(args, self.in_axes, strict=True)
         )
+        self._check_memory(padded, rows)
         started = time.perf_counter()
         out = jax.tree.map(lambda x: x[: end - begin], self.program(padded))
         if self.progress:
@@ -202,6 +218,35 @@ class DeviceBatch:
                 flush=True,
             )
         return out
+
+    def _check_memory(self, padded, rows: int):
+        """Refuse, naming a chunk size that fits, a chunk whose program needs more memory
+        on a device than it has (`memory_limit`, else what the device reports). The
+        program is compiled here, once: the call that follows reuses it."""
+        limit = self.memory_limit or _reported_memory(self.mesh)
+        if limit is None or any(isinstance(x, Tracer) for x in jax.tree.leaves(padded)):
+            return
+        memory = self.program.lower(padded).lowered.compile().memory_analysis()
+        needed = (
+            memory.argument_size_in_bytes + memory.output_size_in_bytes
+            + memory.temp_size_in_bytes - memory.alias_size_in_bytes
+        )  # fmt: skip
+        if needed <= limit:
+            return
+        devices = self.mesh.devices.size
+        per_member = needed / (rows // devices)
+        fits = int(limit // per_member) * devices
+        advice = (
+            f"vmap_over_devices(..., chunk_size={fits}) would fit"
+            if fits
+            else "not even one member per device fits: make the members smaller (fewer "
+            "saved times, a shorter horizon)"
+        )
+        raise MemoryError(
+            f"a chunk of {rows} members needs {needed / 2**20:.1f} MiB on each of the "
+            f"{devices} device(s) (about {per_member / 2**20:.2f} MiB a member), more than "
+            f"the {limit / 2**20:.1f} MiB each has; {advice}."
+        )
 
     def lockstep(self, steps, *, cost=None) -> Lockstep:
         r"""What lockstep costs this batch's layout, for the members' step counts.
@@ -242,6 +287,7 @@ def vmap_over_devices(
     keep_sharded: bool = False,
     chunk_size: int | None = None,
     progress: bool = False,
+    memory_limit: int | None = None,
 ) -> DeviceBatch:
     r"""`jax.vmap(fn)`, its batch spread over devices, each running its share on its own.
 
@@ -269,6 +315,10 @@ def vmap_over_devices(
       other (all chunks one program): for a batch larger than the devices' memory, for
       progress along a long batch, and with `cost=` to bound the lockstep within a device.
     - `progress`: print each chunk's members and time as it ends.
+    - `memory_limit`: the bytes a device may use for one chunk; default, the free memory
+      the devices report (GPUs and TPUs; a CPU reports none, and is not checked). A chunk
+      whose compiled program needs more raises `MemoryError` naming a `chunk_size` that
+      fits, before it runs.
 
     **Returns:**
 
@@ -290,4 +340,4 @@ def vmap_over_devices(
         )
     if chunk_size is not None and chunk_size < 1:
         raise ValueError(f"`chunk_size` is a number of members, at least 1; got {chunk_size}.")
-    return DeviceBatch(fn, mesh, keep_sharded, axes, chunk_size, progress)
+    return DeviceBatch(fn, mesh, keep_sharded, axes, chunk_size, progress, memory_limit)

@@ -8,6 +8,7 @@ sharded inputs all-reduces its stopping test every step); a batch of the same si
 the compiled program, a new size compiles once."""
 
 import json
+import re
 import subprocess
 import sys
 
@@ -176,6 +177,25 @@ def test_the_lockstep_overhead_is_the_steps_each_share_runs_over_those_needed():
     assert sorted_by_cost.overhead == pytest.approx(414 / 319, rel=1e-15)
     whole = bd.vmap_over_devices(lambda x: x).lockstep(steps)
     assert whole.overhead == pytest.approx(71 * 10 / 319, rel=1e-15)
+
+
+def test_a_chunk_larger_than_the_memory_is_refused_naming_a_chunk_size_that_fits():
+    """Each member's products of a 256-vector with itself take about 1 MiB (its compiled
+    program's memory analysis): with 2 MiB a device, eight members are refused before they
+    run, naming a chunk size, which passes the same check, runs, and gives `jax.vmap`'s
+    results."""
+    x = jax.random.normal(jax.random.key(0), (8, 256))
+
+    def member(v):
+        return jnp.sum(jnp.outer(v, v) * jnp.sin(jnp.outer(v, v)), axis=0)
+
+    limit = 2 * 2**20
+    with pytest.raises(MemoryError, match=r"chunk_size=(\d+)\) would fit") as refused:
+        bd.vmap_over_devices(member, memory_limit=limit)(x)
+    fits = int(re.search(r"chunk_size=(\d+)", str(refused.value)).group(1))
+    assert 1 <= fits < 8
+    out = bd.vmap_over_devices(member, memory_limit=limit, chunk_size=fits)(x)
+    np.testing.assert_allclose(out, jax.vmap(member)(x), rtol=1e-14)
 
 
 def test_what_cannot_be_spread_is_refused_with_the_fix():
