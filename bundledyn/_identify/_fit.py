@@ -219,7 +219,7 @@ def fit(
     r"""Identify the free parameters of a scene from measured motion.
 
     The shooting windows are solved in one batch, spread over the local devices when there
-    are several (`over_devices`): on a CPU, start JAX with
+    are several (`vmap_over_devices`, each device solving its share): on a CPU, start JAX with
     `XLA_FLAGS=--xla_force_host_platform_device_count=N` to use N cores.
 
     **Arguments:**
@@ -266,7 +266,7 @@ def fit(
     references, window_states = _window_starts(windows, parameters, measurements, guess)
     problem = ShootingProblem(parameters, extra, measurements, windows, references)
     # Inputs and outputs of the evaluations on the host: no input is then committed to one
-    # device where the windows are spread over several (`over_devices`), and the
+    # device where the windows are spread over several (`over_windows`), and the
     # Levenberg–Marquardt step factorizes the whole Jacobian on one device.
     problem, gauge, window_states = jax.device_get((problem, gauge, window_states))
 

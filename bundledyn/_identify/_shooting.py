@@ -16,6 +16,8 @@ windows only couple through the continuity rows, so the Jacobian is block sparse
 window carries only its own tangents.
 """
 
+import functools
+
 import diffrax
 import equinox as eqx
 import jax
@@ -23,6 +25,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from .. import lie
+from .._batches import DeviceBatch, vmap_over_devices
 from .._modes import AbstractWindowChart
 from .._scene import Scene
 from .._solver._rkmk import RKMK87
@@ -87,32 +90,36 @@ def _grid(ts, count: int, substeps: int):
     return np.minimum(index, n - 1), measured, ts[0] + dt * steps / substeps
 
 
-def over_devices(batched):
-    r"""Arrays batched along their first axis (the windows), spread over the local devices.
+@functools.lru_cache
+def _spread(window_function, devices: tuple) -> DeviceBatch:
+    """`window_function(problem, theta, *window arrays)` batched over the windows and spread
+    over `devices` (`vmap_over_devices`): each device solves its share of the windows in
+    its own loop, with no collective inside it; a window count the devices do not divide is
+    padded. One per function and device set, so that a fit compiles it once."""
+    mesh = jax.sharding.Mesh(np.array(devices), ("windows",))
+    in_axes = (None, None, *(0,) * 7)
+    return vmap_over_devices(window_function, in_axes=in_axes, mesh=mesh, keep_sharded=True)
+
+
+def over_windows(window_function, problem, theta, batched):
+    r"""`window_function` of every window, the windows spread over the local devices.
 
     The windows are independent until their Jacobians are assembled, so each device can
-    solve a share of them: XLA partitions the batched solves along that axis. With $K$
-    windows, the largest number of devices that divides $K$ is used; one device, or none
-    dividing $K$, leaves the arrays as they are. On a CPU, the devices are the ones
+    solve a share of them. On a CPU, the devices are the ones
     `XLA_FLAGS=--xla_force_host_platform_device_count=N` creates (one per core to use),
     set before JAX starts.
 
     **Arguments:**
 
-    - `batched`: a tuple of arrays with the same leading size $K$.
+    - `window_function`: `(problem, theta, *one window's arrays) -> outputs`.
+    - `problem`, `theta`: shared by every window.
+    - `batched`: the windows' arrays, with the same leading size $K$.
 
     **Returns:**
 
-    The same arrays, constrained to that sharding inside a traced function.
+    The outputs of every window, batched along their first axis.
     """
-    devices = jax.local_devices()
-    K = batched[0].shape[0]
-    count = max(n for n in range(1, len(devices) + 1) if K % n == 0)
-    if count == 1:
-        return batched
-    mesh = jax.sharding.Mesh(np.array(devices[:count]), ("windows",))
-    sharding = jax.sharding.NamedSharding(mesh, jax.sharding.PartitionSpec("windows"))
-    return tuple(jax.lax.with_sharding_constraint(x, sharding) for x in batched)
+    return _spread(window_function, tuple(jax.local_devices()))(problem, theta, *batched)
 
 
 def window_starts(ts, windows: Windows) -> np.ndarray:
@@ -222,10 +229,8 @@ class ShootingProblem(eqx.Module):
         return residuals, end
 
     def _batched(self, S, S_next, refs, refs_next):
-        """The windows' arguments, batched along their first axis and spread over the local
-        devices (`over_devices`)."""
-        batched = (S, S_next, self.sample_index, self.measured, self.step_times, refs, refs_next)
-        return over_devices(batched)
+        """The windows' arguments, batched along their first axis."""
+        return (S, S_next, self.sample_index, self.measured, self.step_times, refs, refs_next)
 
     def split(self, z):
         r"""$(\theta, S)$ of a decision vector: the parameters and the `(K, n_s)` window
@@ -251,12 +256,8 @@ class ShootingProblem(eqx.Module):
         `(r, c)`.
         """
         theta, S, S_next, refs, refs_next = self._windows(z, window_states)
-
-        def one(s, s_next, k_idx, meas, ts, g_ref, g_ref_next):
-            r, end = self.window(theta, s, k_idx, meas, ts, g_ref)
-            return r, self._continuity(end, s_next, g_ref_next)
-
-        r, c = jax.vmap(one)(*self._batched(S, S_next, refs, refs_next))
+        batched = self._batched(S, S_next, refs, refs_next)
+        r, c = over_windows(_window_residuals, self, theta, batched)
         c = c[:-1].reshape(-1) if self.windows.fit_states else jnp.zeros((0,), r.dtype)
         return r.reshape(-1), c
 
@@ -278,22 +279,8 @@ class ShootingProblem(eqx.Module):
         fit = self.windows.fit_states
         theta, S, S_next, refs, refs_next = self._windows(z, window_states)
         K, P, n_s = S.shape[0], theta.shape[0], S.shape[1]
-
-        def one(s, s_next, k_idx, meas, ts, g_ref, g_ref_next):
-            def outputs(x):
-                th, s_ = (x[:P], x[P:]) if fit else (x, s)
-                r, end = self.window(th, s_, k_idx, meas, ts, g_ref)
-                return r, self._continuity(end, s_next, g_ref_next), end
-
-            x0 = jnp.concatenate([theta, s]) if fit else theta
-            basis = jnp.eye(x0.shape[0], dtype=x0.dtype)
-            (r, c, end), (dr, dc, _) = jax.vmap(
-                lambda v: jax.jvp(outputs, (x0,), (v,)), out_axes=((None,) * 3, (1, 1, 0))
-            )(basis)
-            dc_next = jax.jacfwd(lambda sn: self._continuity(end, sn, g_ref_next))(s_next)
-            return r, dr, c, dc, dc_next
-
-        r, dr, c, dc, dc_next = jax.vmap(one)(*self._batched(S, S_next, refs, refs_next))
+        batched = self._batched(S, S_next, refs, refs_next)
+        r, dr, c, dc, dc_next = over_windows(_window_jacobians, self, theta, batched)
         rows = r.shape[1]
         if not fit:
             empty = jnp.zeros((0,), r.dtype)
@@ -306,3 +293,28 @@ class ShootingProblem(eqx.Module):
         C_states = (own + following)[:-1].reshape((K - 1) * n_s, K * n_s)
         C = jnp.concatenate([dc[:-1, :, :P].reshape((K - 1) * n_s, P), C_states], axis=1)
         return r.reshape(-1), J, c[:-1].reshape(-1), C
+
+
+def _window_residuals(problem, theta, s, s_next, k_idx, meas, ts, g_ref, g_ref_next):
+    """One window's weighted residuals and continuity defect."""
+    r, end = problem.window(theta, s, k_idx, meas, ts, g_ref)
+    return r, problem._continuity(end, s_next, g_ref_next)
+
+
+def _window_jacobians(problem, theta, s, s_next, k_idx, meas, ts, g_ref, g_ref_next):
+    """One window's residuals and continuity defect with their derivatives in
+    $(\theta, s_k)$ (forward mode, one tangent per direction) and in $s_{k+1}$."""
+    fit, P = problem.windows.fit_states, theta.shape[0]
+
+    def outputs(x):
+        th, s_ = (x[:P], x[P:]) if fit else (x, s)
+        r, end = problem.window(th, s_, k_idx, meas, ts, g_ref)
+        return r, problem._continuity(end, s_next, g_ref_next), end
+
+    x0 = jnp.concatenate([theta, s]) if fit else theta
+    basis = jnp.eye(x0.shape[0], dtype=x0.dtype)
+    (r, c, end), (dr, dc, _) = jax.vmap(
+        lambda v: jax.jvp(outputs, (x0,), (v,)), out_axes=((None,) * 3, (1, 1, 0))
+    )(basis)
+    dc_next = jax.jacfwd(lambda sn: problem._continuity(end, sn, g_ref_next))(s_next)
+    return r, dr, c, dc, dc_next
