@@ -226,7 +226,9 @@ class DeviceBatch:
         limit = self.memory_limit or _reported_memory(self.mesh)
         if limit is None or any(isinstance(x, Tracer) for x in jax.tree.leaves(padded)):
             return
-        memory = self.program.lower(padded).lowered.compile().memory_analysis()
+        # `filter_jit`'s wrapper lowers as `jax.jit`'s does; its type hides `lower`.
+        lowered = self.program.lower(padded)  # pyright: ignore[reportFunctionMemberAccess]
+        memory = lowered.lowered.compile().memory_analysis()
         needed = (
             memory.argument_size_in_bytes + memory.output_size_in_bytes
             + memory.temp_size_in_bytes - memory.alias_size_in_bytes

@@ -9,6 +9,7 @@ import signal
 import sys
 import threading
 import time
+from typing import Any
 
 
 def _pictures_available() -> bool:
@@ -321,13 +322,10 @@ def _write_batch(path, scene_file, elapsed, overhead, **arrays):
         "seconds": elapsed,
         "lockstep_overhead": overhead,
     }
+    saved: dict[str, Any] = {k: np.asarray(v) for k, v in arrays.items()}
+    saved |= {"scene": np.array(scene_file.text), "metadata": np.array(json.dumps(metadata))}
     with atomic_path(path) as tmp:
-        np.savez(
-            tmp,
-            **{k: np.asarray(v) for k, v in arrays.items()},
-            scene=np.array(scene_file.text),
-            metadata=np.array(json.dumps(metadata)),
-        )
+        np.savez(tmp, **saved)
 
 
 def _run_gyroscopes(chain_file, out, args) -> int:
