@@ -66,21 +66,23 @@ def _batch_size(tree) -> int:
 def _on_this_host(x):
     """`x` on this process's first device: gathered from every process's devices where
     other processes hold some of it (under `jax.distributed`)."""
-    if not x.is_fully_addressable:
+    if not isinstance(x, Tracer) and not x.is_fully_addressable:
         x = multihost_utils.process_allgather(x, tiled=True)
     return jax.device_put(x, jax.local_devices()[0])
 
 
 def _reported_memory(mesh: Mesh) -> int | None:
-    """The least memory a device of `mesh` has free, as it reports it (GPUs and TPUs do;
-    a CPU does not: None)."""
+    """The least memory a device of `mesh` in this process has free, as it reports it
+    (GPUs and TPUs do; a CPU does not: None). Another process's devices report to it."""
     free = []
     for device in mesh.devices.flat:
+        if device.process_index != jax.process_index():
+            continue
         stats = device.memory_stats()
         if not stats or "bytes_limit" not in stats:
             return None
         free.append(stats["bytes_limit"] - stats.get("bytes_in_use", 0))
-    return min(free)
+    return min(free, default=None)
 
 
 def _rows(tree, rows):
