@@ -147,6 +147,7 @@ class DeviceBatch:
         self.chunk_size = chunk_size
         self.progress = progress
         self.memory_limit = memory_limit
+        self._memory = {}  # bytes a call needs, by argument signature (`_memory_needed`)
 
     def __call__(self, *args, cost=None):
         """`jax.vmap(fn)(*args)`, spread over the devices (and over chunks of
@@ -190,6 +191,11 @@ class DeviceBatch:
     def _chunk(self, size: int) -> int:
         return min(self.chunk_size or size, size)
 
+    def _rows_per_call(self, chunk: int) -> int:
+        """A chunk's members padded to a multiple of the device count."""
+        devices = self.mesh.devices.size
+        return -(-chunk // devices) * devices
+
     def _order(self, size: int, cost) -> np.ndarray | None:
         if cost is None:
             return None
@@ -204,7 +210,7 @@ class DeviceBatch:
         rounded up to the device count: every chunk runs one program)."""
         chunk = self._chunk(size)
         end = min(begin + chunk, size)
-        rows = -(-chunk // self.mesh.devices.size) * self.mesh.devices.size
+        rows = self._rows_per_call(chunk)
         padded = tuple(
             _padded(jax.tree.map(lambda x: jnp.asarray(x)[begin:end], x), rows) if a == 0 else x
             for x, a in zip(args, self.in_axes, strict=True)
@@ -228,13 +234,7 @@ class DeviceBatch:
         limit = self.memory_limit or _reported_memory(self.mesh)
         if limit is None or any(isinstance(x, Tracer) for x in jax.tree.leaves(padded)):
             return
-        # `filter_jit`'s wrapper lowers as `jax.jit`'s does; its type hides `lower`.
-        lowered = self.program.lower(padded)  # pyright: ignore[reportFunctionMemberAccess]
-        memory = lowered.lowered.compile().memory_analysis()
-        needed = (
-            memory.argument_size_in_bytes + memory.output_size_in_bytes
-            + memory.temp_size_in_bytes - memory.alias_size_in_bytes
-        )  # fmt: skip
+        needed = self._memory_needed(padded)
         if needed <= limit:
             return
         devices = self.mesh.devices.size
@@ -251,6 +251,25 @@ class DeviceBatch:
             f"{devices} device(s) (about {per_member / 2**20:.2f} MiB a member), more than "
             f"the {limit / 2**20:.1f} MiB each has; {advice}."
         )
+
+    def _memory_needed(self, padded) -> int:
+        """The bytes the program of `padded` needs on a device, from its compiled memory
+        analysis; once per argument signature (a batch's every chunk shares one)."""
+        arrays, static = eqx.partition(padded, eqx.is_array)
+        key = (
+            jax.tree.structure(padded),
+            tuple((x.shape, x.dtype) for x in jax.tree.leaves(arrays)),
+            static,
+        )
+        if key not in self._memory:
+            # `filter_jit`'s wrapper lowers as `jax.jit`'s does; its type hides `lower`.
+            lowered = self.program.lower(padded)  # pyright: ignore[reportFunctionMemberAccess]
+            memory = lowered.lowered.compile().memory_analysis()
+            self._memory[key] = (
+                memory.argument_size_in_bytes + memory.output_size_in_bytes
+                + memory.temp_size_in_bytes - memory.alias_size_in_bytes
+            )  # fmt: skip
+        return self._memory[key]
 
     def lockstep(self, steps, *, cost=None) -> Lockstep:
         r"""What lockstep costs this batch's layout, for the members' step counts.
@@ -271,7 +290,7 @@ class DeviceBatch:
         order = self._order(size, cost)
         order = np.arange(size) if order is None else order
         chunk = self._chunk(size)
-        rows = -(-chunk // devices) * devices
+        rows = self._rows_per_call(chunk)
         taken, work = np.empty(size), 0.0
         for begin in range(0, size, chunk):
             members = order[begin : begin + chunk]
