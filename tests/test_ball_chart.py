@@ -11,7 +11,12 @@ import pytest
 
 import bundledyn as bd
 from bundledyn import lie
-from bundledyn._systems._ball_chart import recharted_shape
+from bundledyn._systems._ball_chart import (
+    ball_columns,
+    recharted_shape,
+    shape_difference,
+    shape_velocity_difference,
+)
 
 mujoco = pytest.importorskip("mujoco")
 
@@ -72,6 +77,53 @@ def test_recharting_has_finite_correct_derivatives(theta):
         np.testing.assert_allclose(J_rev, fd, atol=1e-8)
 
 
+@pytest.mark.parametrize("theta", [0.5, 3.0, np.pi + 1e-9, 4.0, 6.0])
+def test_two_charts_of_one_state_differ_by_nothing(theta):
+    """A ball joint's coordinates and their recharted ones (2π apart along the axis) are
+    one rotation and one angular velocity: their differences are zero to rounding, while
+    the hinge's part stays the plain difference."""
+    system = _ball_system()
+    columns = ball_columns(system)
+    axis = jnp.array([0.3, -0.5, 0.8]) / jnp.linalg.norm(jnp.array([0.3, -0.5, 0.8]))
+    q = jnp.concatenate([theta * axis, jnp.array([0.7])])
+    qdot = jnp.array([0.4, -1.1, 2.0, 0.3])
+    other = q * (1.0 - 2.0 * np.pi / theta)  # the other chart of the same turn
+    other_rates = lie.so3_dexp_inv(other[:3]) @ lie.so3_dexp(q[:3]) @ qdot[:3]
+    other, other_qdot = other.at[3].set(0.2), jnp.concatenate([other_rates, jnp.array([0.1])])
+    np.testing.assert_allclose(shape_difference(columns, q, other), [0, 0, 0, 0.5], atol=1e-13)
+    np.testing.assert_allclose(
+        shape_velocity_difference(columns, q, qdot, other, other_qdot), [0, 0, 0, 0.2], atol=1e-12
+    )
+    plain = np.asarray(q - other)
+    assert np.linalg.norm(plain[:3]) > 6.0  # what comparing coordinates would have said
+
+
+def test_the_differences_of_nearby_states_have_finite_correct_derivatives():
+    """At equal rotations (the log's singular point, where every residual of a good fit
+    sits) the difference's Jacobian is finite and equals central differences; at the
+    identity the shape's part is the plain difference's."""
+    system = _ball_system()
+    columns = ball_columns(system)
+    qdot = jnp.array([0.4, -1.1, 2.0, 0.3])
+
+    def f(x, q_b):
+        return jnp.concatenate(
+            [shape_difference(columns, x[:4], q_b),
+             shape_velocity_difference(columns, x[:4], x[4:], q_b, qdot)]
+        )  # fmt: skip
+
+    for q_b in (jnp.zeros(4), jnp.array([1.2, -0.4, 2.1, 0.3])):
+        x = jnp.concatenate([q_b, qdot])
+        np.testing.assert_array_equal(f(x, q_b), np.zeros(8))
+        J = jax.jacrev(f)(x, q_b)
+        assert np.all(np.isfinite(J))
+        h = 1e-6
+        fd = np.stack([(f(x + h * e, q_b) - f(x - h * e, q_b)) / (2 * h) for e in np.eye(8)], 1)
+        np.testing.assert_allclose(J, fd, atol=1e-8)
+        if not np.any(q_b):  # the shape's part: the plain difference's Jacobian
+            np.testing.assert_allclose(J[:4], np.eye(8)[:4], atol=1e-15)
+
+
 def test_a_ball_joint_turns_twenty_times_as_mujoco_turns_it():
     """A wheel on a ball joint spinning at 4π rad/s about a nearly fixed axis, with a
     sideways rate of 1e-5 of the spin, turns 20 times in 5 s in about 200 steps and ends
@@ -119,3 +171,29 @@ def test_the_variational_integrator_keeps_momentum_through_the_chart_switches():
     np.testing.assert_allclose(momentum - momentum[:1], 0.0, atol=1e-12 * scale)
     energy = traj.energy()
     assert float(jnp.max(jnp.abs(energy - energy[0]))) < 1e-4 * float(energy[0])
+
+
+def test_a_window_charts_continuity_sees_no_jump_between_charts_of_one_state():
+    """Identification joins shooting windows by the difference of the end state and the next
+    start: a ball joint solved past |φ| = π and measured inside it are one state."""
+    from bundledyn._modes import DrivenChart, FloatingChart
+    from bundledyn._modes._charts import balls_of
+    from bundledyn.identify import Noise
+
+    system = _ball_system()
+    axis = jnp.array([0.3, -0.5, 0.8]) / jnp.linalg.norm(jnp.array([0.3, -0.5, 0.8]))
+    q = jnp.concatenate([4.0 * axis, jnp.array([0.7])])
+    qdot = jnp.array([0.4, -1.1, 2.0, 0.3])
+    inside_q, inside_qdot = recharted_shape(system, q, qdot)
+    g, xi = jnp.eye(4), jnp.array([0.1, 0.2, 0.3, 0.0, 0.0, 0.1])
+    noise = Noise(rotation=1e-3, position=1e-3, q=1e-3, angular_velocity=1e-2,
+                  linear_velocity=1e-2, qdot=1e-2)  # fmt: skip
+    for chart in (FloatingChart(4, balls_of(system)), DrivenChart(4, balls_of(system))):
+        difference = chart.difference(
+            bd.State(g, q, xi, qdot), bd.State(g, inside_q, xi, inside_qdot), noise
+        )
+        np.testing.assert_allclose(difference, 0.0, atol=1e-9)
+        plain = type(chart)(4).difference(
+            bd.State(g, q, xi, qdot), bd.State(g, inside_q, xi, inside_qdot), noise
+        )
+        assert float(jnp.max(jnp.abs(plain))) > 1e3  # coordinates alone: a 2π jump

@@ -30,6 +30,7 @@ from .._modes import AbstractWindowChart
 from .._scene import Scene
 from .._solver._rkmk import RKMK87
 from .._state import State
+from .._systems._ball_chart import ball_columns, shape_difference, shape_velocity_difference
 from .._systems._multibody import AbstractMultibody
 from .._term import SceneTerm
 from ._data import Level, Measurements, Noise, level
@@ -170,13 +171,21 @@ class ShootingProblem(eqx.Module):
         parts = []
         if m.pose is not None:
             parts.append(jax.vmap(_pose_residual, (0, 0, None))(states.g, m.pose[k_index], noise))
+        # Ball joints are compared by rotation and angular velocity: a measured rotation
+        # vector and a solved one can be the same turn in charts 2π apart.
+        columns = ball_columns(system)
         if m.q is not None:
-            parts.append((states.q - m.q[k_index]) / noise.q)
+            q = jax.vmap(lambda a, b: shape_difference(columns, a, b))(states.q, m.q[k_index])
+            parts.append(q / noise.q)
         if m.xi is not None:
             scale = jnp.array([noise.angular_velocity] * 3 + [noise.linear_velocity] * 3)
             parts.append((states.xi - m.xi[k_index]) / scale[None, :])
         if m.qdot is not None:
-            parts.append((states.qdot - m.qdot[k_index]) / noise.qdot)
+            measured_q = states.q if m.q is None else m.q[k_index]
+            qdot = jax.vmap(functools.partial(shape_velocity_difference, columns))(
+                states.q, states.qdot, measured_q, m.qdot[k_index]
+            )
+            parts.append(qdot / noise.qdot)
         if m.body_poses is not None:
             assert isinstance(system, AbstractMultibody)
             bodies = np.array(m.bodies, int)

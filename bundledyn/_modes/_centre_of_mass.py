@@ -9,7 +9,7 @@ from .._linalg import matmul
 from .._state import State
 from .._systems._ball_chart import ball_columns, recharted_shape
 from ._base import AbstractFreeMotionMode, SceneParts
-from ._charts import FloatingChart
+from ._charts import FloatingChart, balls_of
 from ._floating import body_twist, checked_shape
 
 __all__ = ["CentreOfMassMode"]
@@ -133,4 +133,4 @@ class CentreOfMassMode(AbstractFreeMotionMode):
         return state.xi[:0]
 
     def window_chart(self, scene: SceneParts):
-        return FloatingChart(scene.system.shape_dim)
+        return FloatingChart(scene.system.shape_dim, balls_of(scene.system))

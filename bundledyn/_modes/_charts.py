@@ -10,11 +10,18 @@ from typing import Any, Protocol
 import equinox as eqx
 import jax
 import jax.numpy as jnp
+import numpy as np
 
 from .. import lie
 from .._state import State
+from .._systems._ball_chart import ball_columns, shape_difference, shape_velocity_difference
 
-__all__ = ["AbstractWindowChart", "ChannelScales", "DrivenChart", "FloatingChart"]
+__all__ = ["AbstractWindowChart", "ChannelScales", "DrivenChart", "FloatingChart", "balls_of"]
+
+
+def balls_of(system) -> tuple[tuple[int, ...], ...]:
+    """The ball joints' shape coordinates of `system`, as a chart's static field."""
+    return tuple(tuple(row) for row in ball_columns(system).tolist())
 
 
 class ChannelScales(Protocol):
@@ -43,6 +50,15 @@ class AbstractWindowChart(eqx.Module):
     """Coordinates $s$ of a window's initial state."""
 
     d: eqx.AbstractVar[int]
+    balls: eqx.AbstractVar[tuple[tuple[int, ...], ...]]
+
+    def shape_differences(self, end: State, start: State) -> tuple[jax.Array, jax.Array]:
+        """`end - start` of the shape and of its velocity, ball joints compared by their
+        rotation and angular velocity (the same in every chart of their coordinates)."""
+        columns = np.asarray(self.balls, dtype=int).reshape(-1, 3)
+        return shape_difference(columns, end.q, start.q), shape_velocity_difference(
+            columns, end.q, end.qdot, start.q, start.qdot
+        )
 
     @property
     @abc.abstractmethod
@@ -71,6 +87,7 @@ class FloatingChart(AbstractWindowChart):
     pose $\bar g$, the pose being $\bar g\exp\hat\delta$."""
 
     d: int = eqx.field(static=True)
+    balls: tuple[tuple[int, ...], ...] = eqx.field(static=True, default=())
 
     @property
     def size(self) -> int:
@@ -94,10 +111,11 @@ class FloatingChart(AbstractWindowChart):
         )  # fmt: skip
 
     def difference(self, end: State, start: State, scales: ChannelScales):
+        q, qdot = self.shape_differences(end, start)
         difference = jnp.concatenate(
             [
                 lie.so3_log(start.g[:3, :3].T @ end.g[:3, :3]), end.g[:3, 3] - start.g[:3, 3],
-                end.q - start.q, end.xi - start.xi, end.qdot - start.qdot,
+                q, end.xi - start.xi, qdot,
             ]
         )  # fmt: skip
         return difference / self.units(scales)
@@ -107,6 +125,7 @@ class DrivenChart(AbstractWindowChart):
     r"""Window states of a given base: $s = (q, \dot q)$ (the base's motion is known)."""
 
     d: int = eqx.field(static=True)
+    balls: tuple[tuple[int, ...], ...] = eqx.field(static=True, default=())
 
     @property
     def size(self) -> int:
@@ -122,5 +141,5 @@ class DrivenChart(AbstractWindowChart):
         return jnp.concatenate([jnp.full(self.d, scales.q), jnp.full(self.d, scales.qdot)])
 
     def difference(self, end: State, start: State, scales: ChannelScales):
-        difference = jnp.concatenate([end.q - start.q, end.qdot - start.qdot])
+        difference = jnp.concatenate(self.shape_differences(end, start))
         return difference / self.units(scales)

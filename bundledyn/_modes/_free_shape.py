@@ -6,7 +6,7 @@ from .._geometry import locked_velocity
 from .._state import State
 from .._systems._ball_chart import ball_columns, recharted_shape
 from ._base import AbstractFreeMotionMode, SceneParts
-from ._charts import FloatingChart
+from ._charts import FloatingChart, balls_of
 from ._floating import body_twist, checked_shape, floating_field, galilean_kinematics
 from ._motions import FloatingBase, Free
 
@@ -59,7 +59,7 @@ class FreeShapeMode(AbstractFreeMotionMode):
         return state.xi[:0]
 
     def window_chart(self, scene: SceneParts):
-        return FloatingChart(scene.system.shape_dim)
+        return FloatingChart(scene.system.shape_dim, balls_of(scene.system))
 
 
 def select(system, shape, base) -> FreeShapeMode | None:

@@ -8,7 +8,7 @@ from .._geometry import locked_velocity
 from .._state import State
 from .._systems._ball_chart import ball_columns, recharted_shape
 from ._base import AbstractMode, SceneParts
-from ._charts import DrivenChart
+from ._charts import DrivenChart, balls_of
 from ._floating import checked_shape
 from ._motions import Free, PrescribedBase
 
@@ -89,7 +89,7 @@ class PrescribedBaseMode(AbstractMode):
         return state.xi[:0]
 
     def window_chart(self, scene: SceneParts):
-        return DrivenChart(scene.system.shape_dim)
+        return DrivenChart(scene.system.shape_dim, balls_of(scene.system))
 
 
 def select(system, shape, base) -> PrescribedBaseMode | None:

@@ -5,7 +5,7 @@ import jax.numpy as jnp
 from .._geometry import locked_velocity
 from .._state import State
 from ._base import AbstractMode, SceneParts
-from ._charts import FloatingChart
+from ._charts import FloatingChart, balls_of
 from ._floating import body_twist, galilean_kinematics, locked_field
 from ._motions import FloatingBase, Prescribed
 
@@ -67,7 +67,7 @@ class PrescribedShapeMode(AbstractMode):
         return state.xi[:0]
 
     def window_chart(self, scene: SceneParts):
-        return FloatingChart(scene.system.shape_dim)
+        return FloatingChart(scene.system.shape_dim, balls_of(scene.system))
 
 
 def select(system, shape, base) -> PrescribedShapeMode | None:

@@ -10,6 +10,11 @@ angular velocity have coordinates nearer the origin,
 $\varphi' = \varphi\,(1 - 2\pi/|\varphi|)$ and
 $\dot\varphi' = \operatorname{dexp}(\varphi')^{-1}\operatorname{dexp}(\varphi)\,\dot\varphi$,
 which the Lie-group solvers switch to at the start of a step (`SceneTerm.recharted`).
+
+So two states' coordinates are compared through what they describe (`shape_difference`,
+`shape_velocity_difference`): a measured ball joint (its rotation vector read off MuJoCo's
+quaternion, $|\varphi| \le \pi$) and a solved one in another chart are the same rotation and
+angular velocity with coordinates $2\pi$ apart.
 """
 
 import jax.numpy as jnp
@@ -19,7 +24,7 @@ from .. import lie
 from ._base import AbstractSystem
 from ._multibody import AbstractMultibody
 
-__all__ = ["ball_columns", "recharted_shape"]
+__all__ = ["ball_columns", "recharted_shape", "shape_difference", "shape_velocity_difference"]
 
 
 def ball_columns(system: AbstractSystem) -> np.ndarray:
@@ -60,3 +65,46 @@ def recharted_shape(system: AbstractSystem, q, qdot):
     phi_new = jnp.where(outside, flipped, phi)
     phidot_new = jnp.where(outside, rates, phidot)
     return q.at[columns].set(phi_new), qdot.at[columns].set(phidot_new)
+
+
+def shape_difference(columns: np.ndarray, q_a, q_b):
+    r"""$q_a - q_b$, each ball joint's part the rotation vector of $R(\varphi_b)^T R(\varphi_a)$:
+    the same in every chart of either (a hinge's or slide's part is the plain difference).
+
+    **Arguments:**
+
+    - `columns`: the ball joints' coordinates, `ball_columns(system)`.
+    - `q_a`, `q_b`: two shapes, `(d,)` each.
+
+    **Returns:**
+
+    The difference, `(d,)`.
+    """
+    difference = q_a - q_b
+    if columns.size == 0:
+        return difference
+    turn = jnp.einsum("kji,kjl->kil", lie.so3_exp(q_b[columns]), lie.so3_exp(q_a[columns]))
+    return difference.at[columns].set(lie.so3_log(turn))
+
+
+def shape_velocity_difference(columns: np.ndarray, q_a, qdot_a, q_b, qdot_b):
+    r"""$\dot q_a - \dot q_b$, each ball joint's part the difference of its angular velocities
+    $\omega = \operatorname{dexp}(\varphi)\dot\varphi$ (the same in every chart).
+
+    **Arguments:**
+
+    - `columns`: the ball joints' coordinates, `ball_columns(system)`.
+    - `q_a`, `qdot_a`, `q_b`, `qdot_b`: two shapes and their velocities, `(d,)` each.
+
+    **Returns:**
+
+    The difference, `(d,)`.
+    """
+    difference = qdot_a - qdot_b
+    if columns.size == 0:
+        return difference
+
+    def omega(q, qdot):
+        return jnp.einsum("kij,kj->ki", lie.so3_dexp(q[columns]), qdot[columns])
+
+    return difference.at[columns].set(omega(q_a, qdot_a) - omega(q_b, qdot_b))
