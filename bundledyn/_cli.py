@@ -491,7 +491,7 @@ def identify(args) -> int:
     from ._identify_file import identify_command
 
     return identify_command(
-        args.config, pathlib.Path(args.out), progress=args.progress,
+        args.config, pathlib.Path(args.out), progress=True if args.progress else None,
         plots=not args.no_pictures and _pictures_available(),
     )  # fmt: skip
 
@@ -544,7 +544,11 @@ def main(argv=None) -> int:
     )
     p.add_argument("config", help="the identification file (TOML)")
     p.add_argument("--out", default=".", help="existing folder for the outputs (default: here)")
-    p.add_argument("--progress", action="store_true", help="print each accepted step")
+    p.add_argument(
+        "--progress",
+        action="store_true",
+        help="show each accepted step (default: on a terminal, for fits over a few seconds)",
+    )
     p.add_argument("--no-pictures", action="store_true", help="write no pictures")
     p.set_defaults(run=identify)
     args = parser.parse_args(argv)

@@ -182,8 +182,9 @@ class IdentificationFile:
             truth, output,
         )  # fmt: skip
 
-    def fit(self, *, progress: bool = False) -> FitResult:
-        """Run the identification (`bundledyn.identify.fit` with the file's settings)."""
+    def fit(self, *, progress: bool | None = None) -> FitResult:
+        """Run the identification (`bundledyn.identify.fit` with the file's settings;
+        `progress` as there)."""
         return fit(
             self.parameters, self.measurements, gauge=self.gauge, inputs=self.inputs,
             windows=self.windows, progress=progress, **self.options,
@@ -268,7 +269,7 @@ def write_outputs(
     return written
 
 
-def run_file(file: IdentificationFile, out: pathlib.Path, *, progress: bool, plots: bool):
+def run_file(file: IdentificationFile, out: pathlib.Path, *, progress: bool | None, plots: bool):
     """What `bundledyn identify` does with a loaded file: print what is fitted, fit, print
     the report, write the outputs into the existing folder `out`; the `FitResult`."""
     if not out.is_dir():
@@ -285,7 +286,7 @@ def run_file(file: IdentificationFile, out: pathlib.Path, *, progress: bool, plo
     return result
 
 
-def identify_command(config, out: pathlib.Path, *, progress: bool, plots: bool) -> int:
+def identify_command(config, out: pathlib.Path, *, progress: bool | None, plots: bool) -> int:
     """`bundledyn identify CONFIG.toml`: `run_file`; exit status 1 if the fit did not converge."""
     result = run_file(IdentificationFile.load(config), out, progress=progress, plots=plots)
     return 0 if result.stats["converged"] else 1
