@@ -147,17 +147,22 @@ def test_speed_gradient_baselines_solve_their_odes():
     assert jnp.allclose(jax.grad(loss)(y0)[4], fd, rtol=1e-8)
 
 
-@pytest.mark.parametrize("name", ["chain", "arm", "tumble"])
+@pytest.mark.parametrize("name", ["chain", "arm", "tumble", "tree 2028", "arm 0"])
 def test_identification_error_ignores_exactly_what_motion_cannot_show(name):
     """The identification benchmark scores fits beside `null_directions`, built from the
     geometry. MuJoCo confirms them: moving every fitted body's pseudo-inertia along a random
     combination of them (1e-4 of the smallest body's size) leaves the recorded motion unchanged to
-    rounding, while a random change outside them, as large, changes it visibly."""
+    rounding, while a random change outside them, as large, changes it visibly. On the named
+    data sets and on two generated members: a floating tree on a universal and a ball joint
+    (three bodies), and an arm under gravity."""
     mujoco = pytest.importorskip("mujoco")
     from benchmarks.identification import metric, records
     from benchmarks.identification.cases import CASES
+    from benchmarks.identification.family import member
 
-    case = dataclasses.replace(CASES[name], t1=1.0)
+    kind, _, seed = name.partition(" ")
+    named = CASES.get(name) or member(kind, int(seed), bodies=3 if kind == "tree" else None)
+    case = dataclasses.replace(named, t1=1.0)
     P = metric.model_pseudo_inertias(mujoco.MjModel.from_xml_string(case.mjcf), case.bodies)
     D = metric.null_directions(case, P)
     rng = np.random.default_rng(0)

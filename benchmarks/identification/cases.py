@@ -69,6 +69,8 @@ class Case:
     floating: bool  # a free root (pose and twist measured) or a welded one
     gauge: str  # "inputs" (measured torques) or "mass" (the total mass is known)
     description: str
+    member: int | None = None  # the seed of a generated member (`family`), None if named
+    factors: tuple[float, ...] = FACTORS  # each fitted body's start over the truth
 
 
 CASES = {
@@ -90,10 +92,12 @@ CASES = {
 # ------------------------------------------------------------------------------- signals
 
 
-def torque(case: Case, t, seed):
+def torque(case: Case, t, seed, model=None):
     """The smooth torque signal of `seed` at times `t`, `(..., nu)` (none for `tumble`)."""
     t = np.asarray(t, dtype=float)
     rng = np.random.default_rng(seed)
+    if case.member is not None:
+        return _generated_torque(case, t, rng, model)
     if case.name == "chain":  # `_torque` of tests/test_identify_mujoco.py
         amplitude, frequency, phase = rng.uniform(0.5, 1.0, (3, 2, 3))
         terms = 0.4 * amplitude * np.sin((1 + 3 * frequency) * t[..., None, None] + 6.3 * phase)
@@ -107,10 +111,31 @@ def torque(case: Case, t, seed):
     return np.zeros((*t.shape, 0))
 
 
+def _generated_torque(case: Case, t, rng, model):
+    """A generated member's torques: on each motor three sines of 1–4 rad/s, each scaled
+    to accelerate its joint by some 4 rad/s² at the home pose (the torque over the diagonal
+    of $M^{-1}$, which counts what the joint's push moves on both sides, a floating base's
+    recoil included), so that light and heavy joints move alike."""
+    import mujoco
+
+    model = mujoco.MjModel.from_xml_string(case.mjcf) if model is None else model
+    data = mujoco.MjData(model)
+    mujoco.mj_forward(model, data)
+    M = np.zeros((model.nv, model.nv))
+    mujoco.mj_fullM(model, data, M)
+    dofs = model.jnt_dofadr[model.actuator_trnid[:, 0]]
+    scale = 4.0 / np.diag(np.linalg.inv(M))[dofs]
+    amplitude, frequency, phase = rng.uniform(0.5, 1.0, (3, model.nu, 3))
+    waves = amplitude * np.sin((1 + 3 * frequency) * t[..., None, None] + 6.3 * phase)
+    return scale * np.sum(waves, -1) / 3
+
+
 def initial_velocity(case: Case, model, seed):
     """`(qpos, qvel)` at the start of the record of `seed`."""
     rng = np.random.default_rng(seed)
     qpos = model.qpos0.copy()
+    if case.member is not None:
+        return _generated_start(model, rng)
     if case.name == "chain":  # as `_mujoco_record`
         qvel = rng.normal(size=model.nv) * np.array([0.1, 0.1, 0.1, 0.5, 0.5, 0.5, 1.0, 1.0])
     elif case.name == "arm":
@@ -119,6 +144,29 @@ def initial_velocity(case: Case, model, seed):
     else:  # a nutating tumble: (v_world, ω_body), ω well away from a principal axis
         omega = np.array([0.6, 0.4, 1.2]) * rng.uniform(0.7, 1.3, 3) * rng.choice([-1, 1], 3)
         qvel = np.concatenate([rng.normal(size=3) * 0.1, omega])
+    return qpos, qvel
+
+
+def _generated_start(model, rng):
+    """A generated member's start: hinges within ±0.4 rad, balls turned up to 0.3 rad, and
+    rates as the chain's (0.1 m/s and 0.5 rad/s for a free root, 1 rad/s per joint
+    coordinate); an arm's rates 0.3 rad/s."""
+    import mujoco
+
+    qpos, qvel = model.qpos0.copy(), np.zeros(model.nv)
+    for j in range(model.njnt):
+        kind, a, v = model.jnt_type[j], model.jnt_qposadr[j], model.jnt_dofadr[j]
+        if kind == mujoco.mjtJoint.mjJNT_FREE:
+            qvel[v : v + 6] = rng.normal(size=6) * np.array([0.1, 0.1, 0.1, 0.5, 0.5, 0.5])
+        elif kind == mujoco.mjtJoint.mjJNT_BALL:
+            quat = np.zeros(4)
+            axis = rng.normal(size=3)
+            mujoco.mju_axisAngle2Quat(quat, axis / np.linalg.norm(axis), rng.uniform(-0.3, 0.3))
+            qpos[a : a + 4], qvel[v : v + 3] = quat, rng.normal(size=3)
+        else:
+            qpos[a], qvel[v] = rng.uniform(-0.4, 0.4), rng.normal()
+    if model.jnt_type[0] != mujoco.mjtJoint.mjJNT_FREE:
+        qvel *= 0.3
     return qpos, qvel
 
 
@@ -135,7 +183,7 @@ def nominal_spec(case: Case):
         body = spec.body("body")
         body.ipos, body.fullinertia = [0.0, 0.0, 0.0], [0.4, 0.4, 0.4, 0.0, 0.0, 0.0]
         return spec
-    for name, factor in zip(case.bodies, FACTORS, strict=False):
+    for name, factor in zip(case.bodies, case.factors, strict=False):
         body = spec.body(name)
         body.mass = body.mass * factor
         body.fullinertia = np.asarray(body.fullinertia) * factor

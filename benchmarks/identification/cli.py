@@ -13,6 +13,7 @@ NAME = "identification"
 PACKAGES = ("bundledyn", "jax", "jaxlib", "equinox", "diffrax", "numpy", "mujoco")
 LEVELS = (0.0, 0.001, 0.01)
 SYSID_ITERS = 200  # mujoco.sysid's own default
+FAMILY = 3  # generated members of each kind (`family.py`): seeds 0, 1, 2
 
 
 def _parser():
@@ -20,7 +21,13 @@ def _parser():
         DESCRIPTION, "the tumbling body only, short record, one seed and noise level"
     )
     parser.add_argument("--seeds", type=int, help="seeds per case (default 2; quick 1)")
-    parser.add_argument("--cases", help="comma-separated subset of chain,arm,tumble")
+    parser.add_argument(
+        "--cases",
+        help="comma-separated subset of chain,arm,tumble and generated members (tree0, arm1, ...)",
+    )
+    parser.add_argument(
+        "--family", type=int, help=f"generated members per kind (default {FAMILY}; quick 0)"
+    )
     parser.add_argument("--sysid-iters", type=int, help=f"default {SYSID_ITERS}; quick 8")
     return parser
 
@@ -49,7 +56,8 @@ def measure(args):
     import bundledyn as bd
     from benchmarks.identification import sysid
     from benchmarks.identification.cases import CASES
-    from benchmarks.identification.run import run_case, summarize
+    from benchmarks.identification.family import family
+    from benchmarks.identification.run import run_case, summarize, summarize_family
 
     bd.enable_x64()
     if not sysid.available():
@@ -57,7 +65,10 @@ def measure(args):
         return None
     seeds = tuple(range(args.seeds or (1 if args.quick else 2)))
     sysid_iters = args.sysid_iters or (8 if args.quick else SYSID_ITERS)
-    names = args.cases.split(",") if args.cases else (["tumble"] if args.quick else list(CASES))
+    count = args.family if args.family is not None else (0 if args.quick else FAMILY)
+    cases = CASES | {case.name: case for case in family(max(count, 10))}
+    default = ["tumble"] if args.quick else [*CASES, *(c.name for c in family(count))]
+    names = args.cases.split(",") if args.cases else default
     levels = (0.01,) if args.quick else LEVELS
     report = report_header(
         PACKAGES, args.quick, seeds=len(seeds), levels=list(levels), sysid_iters=sysid_iters,
@@ -65,13 +76,14 @@ def measure(args):
     )  # fmt: skip
     began = time.perf_counter()
     for name in names:
-        case = CASES[name]
+        case = cases[name]
         if args.quick:
             case = dataclasses.replace(case, t1=1.5, held_out_t1=1.0)
         print(f"{name}: {case.description}", flush=True)
         result = run_case(case, seeds, levels, sysid_iters, log=lambda s: print(s, flush=True))
         result["summary"] = summarize(result)
         report["cases"][name] = result
+    report["family"] = summarize_family(report["cases"])
     report["seconds"] = time.perf_counter() - began
     return report
 

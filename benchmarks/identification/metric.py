@@ -69,6 +69,29 @@ def _line(anchor, axis):
     return [np.outer(u, u), np.outer(u, w) + np.outer(w, u), np.outer(w, w)]
 
 
+def _fixed_axis(model, joint, k, body):
+    """The directions of a body turning about an axis fixed in space that its dynamics does
+    not see: all but its moment about the axis and, under gravity, its first moment across
+    the axis (the only three functionals it enters)."""
+    w = np.append(model.jnt_axis[joint], 0.0)
+    w[:3] /= np.linalg.norm(w[:3])
+    E = np.hstack([np.eye(3), -model.jnt_pos[joint][:, None]])  # p̃ -> p - anchor
+    seen = [E.T @ (np.eye(3) - np.outer(w[:3], w[:3])) @ E]  # the moment about the axis
+    across = np.linalg.svd(w[None, :3])[2][1:]  # two unit vectors across the axis
+    for b in across:  # the first moment about the anchor, across the axis
+        F = np.outer(E.T @ b, np.eye(4)[3])
+        seen.append(0.5 * (F + F.T))
+    basis = np.stack([B.reshape(-1) for B in _symmetric_basis()], 1)  # (16, 10)
+    functionals = np.stack([basis.T @ F.reshape(-1) for F in seen])  # (3, 10)
+    hidden = np.linalg.svd(functionals)[2][len(seen) :]  # (7, 10)
+    directions = []
+    for v in hidden:
+        D = np.zeros((k, 4, 4))
+        D[body] = (basis @ v).reshape(4, 4)
+        directions.append(D)
+    return directions
+
+
 def _symmetric_basis():
     basis = []
     for i in range(4):
@@ -85,7 +108,8 @@ def null_directions(case: Case, P_true):
 
     - each hinge between two fitted bodies: mass on its axis line, added to the child and
       taken from the parent (three directions, as `_hinge_regroupings` in
-      tests/test_identify_mujoco.py);
+      tests/test_identify_mujoco.py); a ball joint, or hinges crossed at one point (a
+      universal joint): mass at that point (one direction);
     - a body turning about an axis fixed in space (the arm's upper link): everything but
       its moment about the axis and, under gravity, its first moment across the axis
       (the only three functionals its dynamics sees);
@@ -102,35 +126,28 @@ def null_directions(case: Case, P_true):
         D = np.zeros((1, 4, 4))
         D[0, :3, :3] = P_true[0, :3, :3] - m * np.outer(c, c)
         directions.append(D)
-    for j in range(model.njnt):
-        if model.jnt_type[j] != mujoco.mjtJoint.mjJNT_HINGE:
+    for child in range(1, model.nbody):
+        joints = [j for j in range(model.njnt) if model.jnt_bodyid[j] == child]
+        kinds = [model.jnt_type[j] for j in joints]
+        if not joints or mujoco.mjtJoint.mjJNT_FREE in kinds:
             continue
-        child = model.jnt_bodyid[j]
         parent = model.body_parentid[child]
         name, parent_name = model.body(child).name, model.body(parent).name
-        lines = _line(model.jnt_pos[j], model.jnt_axis[j])
-        if parent_name in index:
-            T = _placement(model, child)
-            for delta in lines:
-                D = np.zeros((k, 4, 4))
-                D[index[name]], D[index[parent_name]] = delta, -T @ delta @ T.T
-                directions.append(D)
-        else:  # the parent is welded to the world: the hinge's axis is fixed in space
-            w = np.append(model.jnt_axis[j], 0.0)
-            w[:3] /= np.linalg.norm(w[:3])
-            E = np.hstack([np.eye(3), -model.jnt_pos[j][:, None]])  # p̃ -> p - anchor
-            seen = [E.T @ (np.eye(3) - np.outer(w[:3], w[:3])) @ E]  # the moment about the axis
-            across = np.linalg.svd(w[None, :3])[2][1:]  # two unit vectors across the axis
-            for b in across:  # the first moment about the anchor, across the axis
-                F = np.outer(E.T @ b, np.eye(4)[3])
-                seen.append(0.5 * (F + F.T))
-            basis = np.stack([B.reshape(-1) for B in _symmetric_basis()], 1)  # (16, 10)
-            functionals = np.stack([basis.T @ F.reshape(-1) for F in seen])  # (3, 10)
-            hidden = np.linalg.svd(functionals)[2][len(seen) :]  # (7, 10)
-            for v in hidden:
-                D = np.zeros((k, 4, 4))
-                D[index[name]] = (basis @ v).reshape(4, 4)
-                directions.append(D)
+        if parent_name not in index:  # the parent is welded to the world
+            if kinds != [mujoco.mjtJoint.mjJNT_HINGE]:
+                raise ValueError(f"{name}: only a hinge on a welded parent is scored")
+            directions += _fixed_axis(model, joints[0], k, index[name])
+            continue
+        if kinds == [mujoco.mjtJoint.mjJNT_HINGE]:  # mass on the hinge's axis line
+            moved = _line(model.jnt_pos[joints[0]], model.jnt_axis[joints[0]])
+        else:  # a ball or crossed hinges: mass at the joint's centre
+            u = np.append(model.jnt_pos[joints[0]], 1.0)
+            moved = [np.outer(u, u)]
+        T = _placement(model, child)
+        for delta in moved:
+            D = np.zeros((k, 4, 4))
+            D[index[name]], D[index[parent_name]] = delta, -T @ delta @ T.T
+            directions.append(D)
     if not directions:
         return np.zeros((k * 16, 0))
     return np.stack([D.reshape(-1) for D in directions], axis=1)

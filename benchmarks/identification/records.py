@@ -25,6 +25,19 @@ def torque_log(case: Case, seed, t1):
     return times, torque(case, times, seed)
 
 
+def joint_forces(case: Case, torques):
+    """The motors' torques `(m, nu)` as bundledyn's shape forces `(m, d)`: each motor's
+    column at its hinge's coordinate (MuJoCo's joint order, past a free root's six), zero on
+    the undriven coordinates (a generated tree's ball joints)."""
+    import mujoco
+
+    model = mujoco.MjModel.from_xml_string(case.mjcf)
+    root = 6 if case.floating else 0
+    placed = np.zeros((model.nu, model.nv - root))
+    placed[np.arange(model.nu), model.jnt_dofadr[model.actuator_trnid[:, 0]] - root] = 1.0
+    return np.asarray(torques) @ placed
+
+
 def held_torques(case: Case, seed, t1, timestep):
     """What the motors hold over each MuJoCo step of `[0, t1]`: the log read linearly at
     the step's middle. `(step start times, torques)`."""
@@ -107,7 +120,9 @@ def noisy_record(case: Case, seed: int, level: float) -> Record:
     inputs = None
     if torques.shape[-1]:
         inputs = identify.Inputs(
-            jnp.asarray(torque_ts), joint_forces=jnp.asarray(torques), interpolation="linear"
+            jnp.asarray(torque_ts),
+            joint_forces=jnp.asarray(joint_forces(case, torques)),
+            interpolation="linear",
         )
     rng = np.random.default_rng(1000 + seed)
     weight = level if level > 0 else 1e-3

@@ -126,8 +126,42 @@ def markdown(report):
         if names:
             lines += ["", "bundledyn names as undetermined (any seed): " + "; ".join(names) + "."]
         lines.append("")
+    lines += _family_lines(report.get("family"))
     lines += ["## The goal", "", *goal_paragraph(report), ""]
     return "\n".join(lines)
+
+
+def _median_worst(stats, digits=3):
+    return "–" if stats is None else f"{stats['median']:.{digits}g} ({stats['max']:.{digits}g})"
+
+
+def _family_lines(family):
+    """The generated members together: times and held-out errors, median (worst)."""
+    if not family or family["compile_seconds"] is None:
+        return []
+    lines = [
+        "## The generated family together",
+        "",
+        "Floating trees and fixed-base arms written from seeds (`family.py`), none tuned for. "
+        f"bundledyn's compiling per member (all its fits of it): "
+        f"{_median_worst(family['compile_seconds'])} s, median (worst).",
+        "",
+        "| noise | fits | peer | time ratio | ratio without compiling | held-out, bundledyn | "
+        "held-out, peer |",
+        "|---|---|---|---|---|---|---|",
+    ]
+    for level, row in family.items():
+        if level == "compile_seconds":
+            continue
+        for method in METHODS[1:]:
+            peer = row[method]
+            lines.append(
+                f"| {_level(level)} | {row['fits']} | {_NAMES[method]} | "
+                f"{_median_worst(peer['ratio'])} | {_median_worst(peer['fit_ratio'])} | "
+                f"{_median_worst(row['bundledyn_prediction'])} | "
+                f"{_median_worst(peer['prediction'])} |"
+            )
+    return [*lines, ""]
 
 
 def goal_paragraph(report):

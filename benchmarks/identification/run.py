@@ -97,6 +97,7 @@ def run_case(case, seeds, levels, sysid_iters, log=print):
             scored = _scored(case, model, P_true, directions, unseen[seed], level)
             entry[name] = result | scored
         out["fits"].append(entry)
+        out["bundledyn_compile_seconds"] = ours.compile_seconds
         log(
             f"  {case.name} seed {seed} noise {level:.1%}: error "
             + ", ".join(
@@ -153,3 +154,35 @@ def summarize(case_result):
             peer["fifth_of_time"] = peer["ratio"]["median"] <= 0.2
         rows[f"{level:g}"] = row
     return rows
+
+
+def summarize_family(cases):
+    """Over the generated members (`family.py`): bundledyn's compiling per member (all its
+    fits of the member), and per noise level bundledyn's time over each mujoco.sysid
+    variant's (with and without the compiling) and both held-out errors, median and worst."""
+    members = [c for c in cases.values() if c["case"].get("member") is not None]
+    rows = {"compile_seconds": _stats([c["bundledyn_compile_seconds"] for c in members])}
+    for level in sorted({f["level"] for c in members for f in c["fits"]}):
+        fits = [f for c in members for f in c["fits"] if f["level"] == level]
+        row = {
+            "fits": len(fits),
+            "bundledyn_prediction": _stats([_held_out(f["bundledyn"], level) for f in fits]),
+        }
+        for method in METHODS[1:]:
+            row[method] = {
+                "ratio": _stats([f["bundledyn"]["seconds"] / f[method]["seconds"] for f in fits]),
+                "fit_ratio": _stats(
+                    [
+                        (f["bundledyn"]["seconds"] - f["bundledyn"]["compile_seconds"])
+                        / f[method]["seconds"]
+                        for f in fits
+                    ]
+                ),  # fmt: skip
+                "prediction": _stats([_held_out(f[method], level) for f in fits]),
+            }
+        rows[f"{level:g}"] = row
+    return rows
+
+
+def _held_out(result, level):
+    return result["prediction_in_noise"] if level > 0 else result["prediction_relative"]
