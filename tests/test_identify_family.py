@@ -36,7 +36,8 @@ def fitted():
     return case, truth, ours, result
 
 
-@pytest.mark.slow  # two identification fits of a three-body tree
+@pytest.mark.slow  # an identification fit of a three-body tree
+@pytest.mark.xdist_group("identify_family")  # one worker fits once for both
 def test_a_generated_tree_is_fitted_physical_and_predicts_motion_it_never_saw(fitted):
     case, truth, _, result = fitted
     assert result.stats["converged"]
@@ -49,16 +50,18 @@ def test_a_generated_tree_is_fitted_physical_and_predicts_motion_it_never_saw(fi
     assert max(records.prediction_error(case, truth, records.held_out(case, 0)).values()) == 0
 
 
-@pytest.mark.slow  # two identification fits of a three-body tree
+@pytest.mark.slow  # an identification fit of a three-body tree, and three steps of another
+@pytest.mark.xdist_group("identify_family")
 def test_another_record_of_the_same_model_compiles_nothing(fitted):
     case, _, ours, first = fitted
     assert first.stats["compile_seconds"] > 0
     record = records.noisy_record(case, 1, LEVEL)
 
-    def second_fit():
+    def second_fit():  # a few steps: every compiled part runs (warm start, windows, steps)
         second_fit.result = identify.fit(
-            ours.parameters, record.measurements, inputs=record.inputs, gauge=ours.gauge
-        )
+            ours.parameters, record.measurements, inputs=record.inputs, gauge=ours.gauge,
+            max_steps=3,
+        )  # fmt: skip
         return second_fit.result.theta
 
     _, programs = lowerings(second_fit)
