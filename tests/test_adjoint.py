@@ -326,6 +326,7 @@ def _counted_evaluations(adjoint, differentiate):
     return len(count)
 
 
+@pytest.mark.slow  # seven solves compiled, each forward and reverse
 def test_the_reverse_sweep_replays_the_fields_values_kept_by_the_forward_solve():
     # The reverse sweep evaluates the field's forces once per stage, in its written-out
     # pass, and the field itself only at the steps that were not kept, stepped again.

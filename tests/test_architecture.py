@@ -222,6 +222,7 @@ def test_the_walker_sees_lazy_and_relative_imports(graph):
     assert "bundledyn._scene" in graph["bundledyn._term"]
 
 
+@pytest.mark.slow  # half a minute of type checking, not of the package's behaviour
 def test_pyright_passes():
     """pyright in standard mode (`[tool.pyright]` in pyproject.toml) on the package."""
     result = subprocess.run(

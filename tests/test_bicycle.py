@@ -133,6 +133,7 @@ def test_maggi_and_appell_give_the_same_accelerations():
         np.testing.assert_allclose(a, b, rtol=0, atol=1e-10 * max(1.0, float(jnp.max(jnp.abs(b)))))
 
 
+@pytest.mark.slow  # a 4 s nonlinear solve of Maggi's equations, compiled with their second derivatives
 def test_a_leaning_bicycle_keeps_its_energy_and_its_wheels_roll():
     # Inside the self-stable band, a lean of 0.1 rad and a steer rate die out; the motion is
     # nonlinear and conservative.

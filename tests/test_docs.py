@@ -140,6 +140,7 @@ def test_the_readme_example_runs_and_draws(tmp_path):
     assert (tmp_path / "cat.gif").stat().st_size > 10_000
 
 
+@pytest.mark.slow  # an interpreter of its own compiling a batch of rollouts
 def test_the_batch_guide_shards_over_two_devices(tmp_path):
     """The guide's batch runs on two devices and gives the one-device answers exactly."""
     out = run_example("docs/how-to/batches.md", tmp_path).splitlines()

@@ -40,6 +40,7 @@ def _tumbling(body, xi0, noise_level, t1=10.0, rate=50, seed=1, inertia0=None, *
     return identify.fit(parameters, data, gauge=identify.KnownMass(float(body.mass)), **options)
 
 
+@pytest.mark.slow  # an identification fit of its own (the slow part's kind)
 def test_a_tumbling_body_shows_its_axes_and_inertia_ratios_but_not_their_scale():
     """Torque-free, 1 % noise on the pose and the gyro and velocity readings, from an
     isotropic start: principal axes within 0.05° and the two inertia ratios within 0.5 %;

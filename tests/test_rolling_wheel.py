@@ -139,6 +139,7 @@ def test_a_unicycle_on_the_bundle_moves_as_its_euler_angle_equations_move_it():
     assert np.max(np.abs(residual)) < 1e-12
 
 
+@pytest.mark.slow  # a rolling solve compiled forward and in reverse
 def test_the_gradient_through_a_rolling_tree_equals_central_differences():
     scene = _scene()
     state = _state(scene, Q0, E0)
