@@ -1,7 +1,9 @@
 """Identification against mujoco.sysid, on the same MuJoCo-generated data sets (issue 32).
 
 Data sets (`cases`, `records`): a floating three-body chain driven at its hinges, a
-two-link arm on a welded base under gravity, a torque-free tumbling body with known mass;
+two-link arm on a welded base under gravity, a torque-free tumbling body with known mass,
+and the generated family (`family`: floating trees of 2–8 bodies and arms of 2–6 links,
+written from seeds, none tuned for; `--family N` runs N of each kind, default 3);
 MuJoCo records each (RK4, 0.2 ms, 100 Hz) with Gaussian noise of 0, 0.1 % and 1 % of each
 channel's spread, for several seeds. Both methods get the same noisy record and torque
 log and start from the same nominal inertias (20-25 % off; the tumbling body from an
