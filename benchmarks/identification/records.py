@@ -169,11 +169,26 @@ def noisy_record(case: Case, seed: int, level: float) -> Record:
 
     to_mujoco = jax.vmap(lambda s: bd.state_to_mujoco(truth, s))
     noisy_qpos, noisy_qvel = (np.array(x) for x in to_mujoco(states))
-    # The measured quaternion's sign follows the motion's (mujoco.sysid compares components).
-    flip = np.sum(noisy_qpos[:, 3:7] * qpos[:, 3:7], axis=1) < 0
-    noisy_qpos[flip, 3:7] *= -1
+    for first in _quaternions(case):  # each measured quaternion's sign follows the motion's
+        part = slice(first, first + 4)  # (mujoco.sysid compares components)
+        flip = np.sum(noisy_qpos[:, part] * qpos[:, part], axis=1) < 0
+        noisy_qpos[flip, part] *= -1
     return Record(case, seed, level, measurements, inputs, ts, noisy_qpos, noisy_qvel,
                   torque_ts, torques, *steps, sigmas)  # fmt: skip
+
+
+def _quaternions(case: Case):
+    """Where each quaternion starts in `qpos`: the free root's and every ball joint's."""
+    import mujoco
+
+    model = mujoco.MjModel.from_xml_string(case.mjcf)
+    free, ball = int(mujoco.mjtJoint.mjJNT_FREE), int(mujoco.mjtJoint.mjJNT_BALL)
+    kinds = [int(kind) for kind in model.jnt_type]  # (`in` does not match numpy and enum)
+    return [
+        int(model.jnt_qposadr[j]) + (3 if kind == free else 0)
+        for j, kind in enumerate(kinds)
+        if kind in (free, ball)
+    ]
 
 
 def held_out(case: Case, seed: int):

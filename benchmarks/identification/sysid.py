@@ -18,7 +18,9 @@ Three departures from the defaults, each needed or to its advantage:
 - the stretch bounds are widened from ×[0.5, 2] to ×[0.1, 10] (the isotropic start of the
   tumbling body is more than 2× off along one axis);
 - where the mass is known (the tumbling body) it is held fixed: a custom Parameter of the
-  other nine coordinates.
+  other nine coordinates;
+- the measured signals' columns are mapped here (`_measured`), not by
+  `TimeSeries.from_names`, which reads a ball joint as one column in MuJoCo 4.0.0.
 """
 
 import contextlib
@@ -96,6 +98,29 @@ def _signals(case, model):
     return [f"{j}_qpos" for j in joints] + [f"{j}_qvel" for j in joints]
 
 
+def _measured(times, data, model, signals):
+    """The measured qpos and qvel as a `TimeSeries` of the named joint and free-body signals,
+    each as wide as its joint (`TimeSeries.from_names` would do this, but in MuJoCo 4.0.0 its
+    width lookup compares the joint type with enum keys and reads a ball joint as one
+    column)."""
+    import mujoco
+    from mujoco import sysid
+
+    widths = {mujoco.mjtJoint.mjJNT_FREE: (7, 6), mujoco.mjtJoint.mjJNT_BALL: (4, 3)}
+    mapping, column = {}, 0
+    for name in signals:
+        base, kind = name.rsplit("_", 1)
+        joint = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, base)
+        if joint < 0:  # a free body, named by its body
+            joint = model.body_jntadr[mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, base)]
+        qpos, qvel = widths.get(mujoco.mjtJoint(int(model.jnt_type[joint])), (1, 1))
+        width = qpos if kind == "qpos" else qvel
+        signal = sysid.SignalType.MjStateQPos if kind == "qpos" else sysid.SignalType.MjStateQVel
+        mapping[name] = (signal, np.arange(column, column + width))
+        column += width
+    return sysid.TimeSeries(times=times, data=data, signal_mapping=mapping)
+
+
 def _sequences(case, record, spec, model, segments: int):
     """The record as mujoco.sysid's sequences: the whole record (single shooting) or
     `segments` consecutive pieces, each rolled out from its measured first state (its
@@ -116,9 +141,9 @@ def _sequences(case, record, spec, model, segments: int):
             record.step_torques[steps].reshape(int(steps.sum()), -1), model,
         ))  # fmt: skip
         rows = slice(first, last + 1)
-        measured.append(sysid.TimeSeries.from_names(
+        measured.append(_measured(
             record.ts[rows] - t0, np.hstack([record.qpos[rows], record.qvel[rows]]), model,
-            names=signals,
+            signals,
         ))  # fmt: skip
         initial.append(sysid.create_initial_state(model, record.qpos[first], record.qvel[first]))
         names.append(f"record_{k}")
