@@ -23,10 +23,10 @@ _RUNNING: contextvars.ContextVar["FitClock | None"] = contextvars.ContextVar(
 _LISTENING = [False]
 
 
-def _on_event(event: str, duration: float, **kwargs) -> None:
+def _on_event(event: str, duration_secs: float, **kwargs: str | int) -> None:
     clock = _RUNNING.get()
     if clock is not None and event in _COMPILE_EVENTS:
-        clock.compile_seconds += duration
+        clock.compile_seconds += duration_secs
 
 
 class FitClock:
