@@ -68,6 +68,7 @@ def float32_models():
 
 
 @pytest.mark.slow  # every shipped model compiled twice, in float32 and in float64
+@pytest.mark.xdist_group("float32_models")  # one worker runs the models' fixture once
 @pytest.mark.parametrize("name", MODELS)
 def test_a_shipped_model_imports_simulates_and_is_invariant_in_float32(float32_models, name):
     pose, dtype, system_dtypes, invariant = float32_models[name]
