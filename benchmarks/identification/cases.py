@@ -92,12 +92,12 @@ CASES = {
 # ------------------------------------------------------------------------------- signals
 
 
-def torque(case: Case, t, seed, model=None):
+def torque(case: Case, t, seed):
     """The smooth torque signal of `seed` at times `t`, `(..., nu)` (none for `tumble`)."""
     t = np.asarray(t, dtype=float)
     rng = np.random.default_rng(seed)
     if case.member is not None:
-        return _generated_torque(case, t, rng, model)
+        return _generated_torque(case, t, rng)
     if case.name == "chain":  # `_torque` of tests/test_identify_mujoco.py
         amplitude, frequency, phase = rng.uniform(0.5, 1.0, (3, 2, 3))
         terms = 0.4 * amplitude * np.sin((1 + 3 * frequency) * t[..., None, None] + 6.3 * phase)
@@ -111,14 +111,14 @@ def torque(case: Case, t, seed, model=None):
     return np.zeros((*t.shape, 0))
 
 
-def _generated_torque(case: Case, t, rng, model):
+def _generated_torque(case: Case, t, rng):
     """A generated member's torques: on each motor three sines of 1–4 rad/s, each scaled
     to accelerate its joint by some 4 rad/s² at the home pose (the torque over the diagonal
     of $M^{-1}$, which counts what the joint's push moves on both sides, a floating base's
     recoil included), so that light and heavy joints move alike."""
     import mujoco
 
-    model = mujoco.MjModel.from_xml_string(case.mjcf) if model is None else model
+    model = mujoco.MjModel.from_xml_string(case.mjcf)
     data = mujoco.MjData(model)
     mujoco.mj_forward(model, data)
     M = np.zeros((model.nv, model.nv))
@@ -133,9 +133,9 @@ def _generated_torque(case: Case, t, rng, model):
 def initial_velocity(case: Case, model, seed):
     """`(qpos, qvel)` at the start of the record of `seed`."""
     rng = np.random.default_rng(seed)
-    qpos = model.qpos0.copy()
     if case.member is not None:
         return _generated_start(model, rng)
+    qpos = model.qpos0.copy()
     if case.name == "chain":  # as `_mujoco_record`
         qvel = rng.normal(size=model.nv) * np.array([0.1, 0.1, 0.1, 0.5, 0.5, 0.5, 1.0, 1.0])
     elif case.name == "arm":
@@ -172,7 +172,7 @@ def _generated_start(model, rng):
 
 def nominal_spec(case: Case):
     """The case's MJCF with each fitted body's inertial at the start of both fits: the
-    truth's pseudo-inertia times `FACTORS` (chain, arm); for the tumbling body (whose mass
+    truth's pseudo-inertia times the case's `factors` (chain, arm, generated members); for the tumbling body (whose mass
     is known and whose pseudo-inertia scaled would differ from the truth only along what
     free motion hides) the true mass, the centre at the origin and an isotropic inertia
     (0.4, as in tests/test_identify.py)."""
