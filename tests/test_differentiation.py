@@ -37,21 +37,30 @@ def _rollout_loss(params, adjoint=None):
 PARAMS = jnp.concatenate([THREE_STATE.xi, THREE.mass, jnp.array([2.0])])
 
 
-def _central_differences(f, x, h):
+def _central_differences(f, x, h, compiled=False):
     """Rows (f(x + h eᵢ) - f(x - h eᵢ)) / 2h. One compiled unbatched `f`, called 2n times:
-    for the rollout, cheaper than compiling a vmap of them."""
-    f = jax.jit(f)
-    return np.array([(f(x + e) - f(x - e)) / (2 * h) for e in h * np.eye(x.shape[0])])
+    for the rollout, cheaper than compiling a vmap of them. `compiled`: `f` reads the
+    values off a program compiled already (compiling it again inside a new one, not)."""
+    f = f if compiled else jax.jit(f)
+    x = np.asarray(x)
+    return np.array(
+        [(np.asarray(f(x + e)) - np.asarray(f(x - e))) / (2 * h) for e in h * np.eye(x.shape[0])]
+    )
+
+
+# The loss and its gradient (checkpoint adjoint) in one compiled program: the differences
+# below take its values, the gradient test its gradient (one solve compiled, not two).
+_ROLLOUT_VALUE_AND_GRAD = jax.jit(jax.value_and_grad(_rollout_loss))
 
 
 @functools.cache
 def _finite_difference_gradient(h=1e-5):
-    return _central_differences(_rollout_loss, PARAMS, h)
+    return _central_differences(lambda p: _ROLLOUT_VALUE_AND_GRAD(p)[0], PARAMS, h, True)
 
 
 def test_gradient_through_simulate_matches_finite_differences():
     """jax.grad (checkpoint adjoint) w.r.t. initial state, masses and spring stiffness, 1e-6."""
-    grad = jax.jit(jax.grad(_rollout_loss))(PARAMS)
+    _, grad = _ROLLOUT_VALUE_AND_GRAD(PARAMS)
     np.testing.assert_allclose(grad, _finite_difference_gradient(), rtol=1e-6, atol=1e-9)
 
 
@@ -162,8 +171,14 @@ def test_second_derivatives_of_a_solver_step_at_the_undeformed_shape():
         (g1, x1), *_ = solver.step(term, 0.0, 0.05, (g0, x0.at[:6].set(q)), None, None, False)
         return jnp.concatenate([x1, g1[:3].ravel()])
 
-    jacobian = jax.jit(jax.jacfwd(step))
-    second = jax.jit(jax.jacfwd(jax.jacfwd(step)))(jnp.zeros(6))
-    fd = np.moveaxis(_central_differences(jacobian, jnp.zeros(6), 1e-5), 0, -1)
+    # One program gives both: the second derivatives, and the Jacobian as its auxiliary output
+    # (the differences take that, at the shifted shapes).
+    def jacobian_twice(q):
+        jacobian = jax.jacfwd(step)(q)
+        return jacobian, jacobian
+
+    both = jax.jit(jax.jacfwd(jacobian_twice, has_aux=True))
+    second, _ = both(jnp.zeros(6))
+    fd = np.moveaxis(_central_differences(lambda q: both(q)[1], jnp.zeros(6), 1e-5, True), 0, -1)
     assert np.all(np.isfinite(second))
     np.testing.assert_allclose(second, fd, rtol=0, atol=1e-8 * np.abs(fd).max())
