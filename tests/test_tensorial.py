@@ -9,6 +9,7 @@ by the elliptic integral; the two formulations of a chain against each other; ce
 finite differences.
 """
 
+import functools
 import re
 
 import diffrax
@@ -29,7 +30,7 @@ REFERENCE = jnp.array([0.9, 0.3, 0.2]) / jnp.linalg.norm(jnp.array([0.9, 0.3, 0.
 
 
 def _close(a, b, tol, what):
-    error = float(jnp.max(jnp.abs(jnp.asarray(a) - jnp.asarray(b))))
+    error = float(np.max(np.abs(np.asarray(a) - np.asarray(b))))
     assert error <= tol, f"{what}: error {error:.3e} > {tol:.0e}"
 
 
@@ -62,7 +63,8 @@ def _rollout(term, y0, ts):
 
 
 def _orthogonality_error(Z):
-    return jnp.max(jnp.abs(jnp.swapaxes(Z, -1, -2) @ Z - jnp.broadcast_to(jnp.eye(3), Z.shape)))
+    Z = np.asarray(Z)
+    return np.max(np.abs(np.swapaxes(Z, -1, -2) @ Z - np.eye(3)))
 
 
 # --- A free rigid body in (γ, c, Z) (seed 000, (46)–(47), (54)) -------------------------------
@@ -72,6 +74,7 @@ INERTIA = jnp.array([[0.3, 0.01, 0.0], [0.01, 0.5, 0.02], [0.0, 0.02, 0.7]])
 FALL = jnp.array([0.0, -3.0, -9.0])
 
 
+@functools.cache
 def _free_body():
     """T = ½m(γ̇² + γ²ċ²) + ½ω·J_cω (46), J_c = ZJZᵀ, ω = (ŻZᵀ)^∨; Π = -m f·γc."""
 
@@ -100,22 +103,27 @@ def test_the_free_body_in_length_direction_and_rotation_moves_as_bundledyns_rigi
     """Falling and tumbling for 1 s: the centre γc and the rotation Z equal those of
     `bd.RigidBody` through `simulate` to 1e-10, while |c| = 1 and ZᵀZ = 1 hold to rounding."""
     centre, velocity = jnp.array([1.0, 2.0, 3.0]), jnp.array([0.5, -1.0, 2.0])
-    R0, body_rates = lie.so3_exp(jnp.array([0.2, 0.1, -0.3])), jnp.array([1.0, -2.0, 0.5])
+    rotation, body_rates = jnp.array([0.2, 0.1, -0.3]), jnp.array([1.0, -2.0, 0.5])
+
+    @jax.jit  # the two starts in one program, not one per primitive
+    def starts(centre, velocity, rotation, body_rates):
+        R0 = lie.so3_exp(rotation)
+        pose = lie.se3_from_rotation_translation(R0, centre)
+        twist = jnp.concatenate([body_rates, R0.T @ velocity])
+        return _free_body_state(centre, velocity, R0, body_rates), (pose, twist)
+
     ts = jnp.linspace(0.0, 1.0, 5)
-    X, _ = _rollout(
-        bd.TensorialTerm(_free_body()), _free_body_state(centre, velocity, R0, body_rates), ts
-    )
-    state = bd.State(
-        lie.se3_from_rotation_translation(R0, centre),
-        xi=jnp.concatenate([body_rates, R0.T @ velocity]),
-    )
+    y0, (pose, twist) = starts(centre, velocity, rotation, body_rates)
+    X, _ = _rollout(bd.TensorialTerm(_free_body()), y0, ts)
+    state = bd.State(pose, xi=twist)
     scene = bd.Scene(
         bd.RigidBody(MASS, jnp.zeros(3), INERTIA), (bd.Gravity(jnp.linalg.norm(FALL), FALL),)
     )
     traj = bd.simulate(scene, state, 1.0, rtol=1e-13, atol=1e-13, saveat=diffrax.SaveAt(ts=ts))
-    _close(X.scalars * X.unit_vectors[:, 0], traj.g[:, :3, 3], 1e-10, "centre")
-    _close(X.rotations[:, 0], traj.g[:, :3, :3], 1e-10, "rotation")
-    _close(jnp.linalg.norm(X.unit_vectors, axis=-1), 1.0, 1e-14, "|c|")
+    X, g = jax.tree.map(np.asarray, X), np.asarray(traj.g)  # compared in numpy
+    _close(X.scalars * X.unit_vectors[:, 0], g[:, :3, 3], 1e-10, "centre")
+    _close(X.rotations[:, 0], g[:, :3, :3], 1e-10, "rotation")
+    _close(np.linalg.norm(X.unit_vectors, axis=-1), 1.0, 1e-14, "|c|")
     _close(_orthogonality_error(X.rotations), 0.0, 1e-14, "ZᵀZ")
 
 
@@ -125,18 +133,12 @@ def test_the_free_bodys_equations_are_the_seeds_47_and_54():
     to 1e-12 (relative to the terms)."""
     system = _free_body()
     rng = np.random.default_rng(3)
-    equations = eqx.filter_jit(bd.tensorial_equations)
-    for _ in range(4):
-        centre, velocity = jnp.asarray(rng.normal(size=3)), jnp.asarray(rng.normal(size=3))
-        R, rates = lie.so3_exp(jnp.asarray(rng.normal(size=3))), jnp.asarray(rng.normal(size=3))
-        X, V = _free_body_state(centre, velocity, R, rates)
-        A = bd.TensorVelocities(
-            *(
-                jnp.asarray(rng.normal(size=x.shape))
-                for x in (V.scalars, V.unit_vectors, V.rotations)
-            )
-        )
-        ours = equations(system, X, V, A, 0.0)
+
+    @jax.jit  # one program for the four draws, not one per primitive
+    def both(centre, velocity, rotation, rates, A):
+        X, V = _free_body_state(centre, velocity, lie.so3_exp(rotation), rates)
+        A = bd.TensorVelocities(*A)
+        ours = bd.tensorial_equations(system, X, V, A, 0.0)
         Xdot, Xddot = bd.rates_of(X, V), bd.accelerations_of(X, V, A)
         gamma, c = X.scalars[0], X.unit_vectors[0]
         gamma_rate, c_rate = Xdot.scalars[0], Xdot.unit_vectors[0]
@@ -149,23 +151,38 @@ def test_the_free_bodys_equations_are_the_seeds_47_and_54():
         Z, omega, alpha = X.rotations[0], V.rotations[0], A.rotations[0]
         J = Z @ INERTIA @ Z.T
         momentum_rate = J @ alpha + jnp.cross(omega, J @ omega)  # d/dt(J ω), J̇ = ω̃J - Jω̃
-        _close(ours.scalars[0], radial, 1e-12 * (1 + abs(float(radial))), "(47) radial")
         closing = (A.unit_vectors[0] @ c) * c  # the equation that fixes Ω̇·c
-        _close(ours.unit_vectors[0] - closing, transverse, 1e-12 * 10, "(47) transverse")
-        _close(ours.rotations[0], momentum_rate, 1e-12 * 10, "(54)")
+        return (
+            (ours.scalars[0], radial),
+            (ours.unit_vectors[0] - closing, transverse),
+            (ours.rotations[0], momentum_rate),
+        )
+
+    for _ in range(4):
+        centre, velocity, rotation, rates = (rng.normal(size=3) for _ in range(4))
+        A = tuple(rng.normal(size=shape) for shape in ((1,), (1, 3), (1, 3)))
+        (ours_radial, radial), transverse, rotational = both(centre, velocity, rotation, rates, A)
+        _close(ours_radial, radial, 1e-12 * (1 + abs(float(radial))), "(47) radial")
+        _close(*transverse, 1e-12 * 10, "(47) transverse")
+        _close(*rotational, 1e-12 * 10, "(54)")
 
 
 def test_identity_48_the_projection_of_the_angular_velocitys_derivative_is_the_unit_tensor():
     """(48): Z̃ ∧₂ [1]∂ω/∂Ż = E₂: for any v, the projection of ∂(v·ω)/∂Ż, ω = (ŻZᵀ)^∨, is v."""
     rng = np.random.default_rng(5)
-    for _ in range(3):
-        Z = lie.so3_exp(jnp.asarray(rng.normal(size=3)))
-        v, omega = jnp.asarray(rng.normal(size=3)), jnp.asarray(rng.normal(size=3))
-        along = lambda Zdot, v=v, Z=Z: v @ lie.so3_vee(Zdot @ Z.T)
+
+    @jax.jit  # one program for the three draws, not one per primitive
+    def projection(rotation, v, omega):
+        Z = lie.so3_exp(rotation)
+        along = lambda Zdot: v @ lie.so3_vee(Zdot @ Z.T)
         gradient = jax.grad(along)(lie.so3_hat(omega) @ Z)
         X, V = _rotations_only(Z[None], omega[None])
         bracket = bd.TensorCoordinates(X.scalars, X.unit_vectors, gradient[None])
-        _close(bd.projected(X, bracket, V).rotations[0], v, 1e-14, "(48)")
+        return bd.projected(X, bracket, V).rotations[0]
+
+    for _ in range(3):
+        rotation, v, omega = (rng.normal(size=3) for _ in range(3))
+        _close(projection(rotation, v, omega), v, 1e-14, "(48)")
 
 
 def _random_rotation_state(rng):
@@ -178,17 +195,23 @@ def test_identity_50_the_bracket_of_the_angular_velocity_projects_to_its_cross_p
     Z̃ ∧₂ [d/dt ∂g/∂Ż - ∂g/∂Z] is -ω̃v = v × ω (∂ĝ/∂ω = v is constant), to 1e-14; along
     Ż = ω̃Z and Z̈ = (α̃ + ω̃ω̃)Z for any α."""
     rng = np.random.default_rng(19)
-    for _ in range(3):
-        Z, omega, v = _random_rotation_state(rng)
+
+    @jax.jit  # one program for the three draws, not one per primitive
+    def projection(rotation, omega, v, alpha):
+        Z = lie.so3_exp(rotation)
         X, V = _rotations_only(Z[None], omega[None])
-        _, A = _rotations_only(Z[None], jnp.asarray(rng.normal(size=(1, 3))))
+        _, A = _rotations_only(Z[None], alpha)
         system = bd.TensorialSystem(
-            lambda X, Xdot, t, v=v: v @ lie.so3_vee(Xdot.rotations[0] @ X.rotations[0].T)
+            lambda X, Xdot, t: v @ lie.so3_vee(Xdot.rotations[0] @ X.rotations[0].T)
         )
         bracket = bd.lagrange_bracket(
             system, X, bd.rates_of(X, V), bd.accelerations_of(X, V, A), 0.0
         )
-        _close(bd.projected(X, bracket, A).rotations[0], jnp.cross(v, omega), 1e-14, "(50)")
+        return bd.projected(X, bracket, A).rotations[0], jnp.cross(v, omega)
+
+    for _ in range(3):
+        rotation, omega, v, alpha = (rng.normal(size=shape) for shape in (3, 3, 3, (1, 3)))
+        _close(*projection(rotation, omega, v, alpha), 1e-14, "(50)")
 
 
 def test_identity_53_the_inertias_turn_projects_to_minus_omega_cross_the_momentum():
@@ -210,6 +233,7 @@ TOP_MASS, TOP_ARM = 1.0, 0.3
 TOP_INERTIA = jnp.diag(jnp.array([0.02, 0.02, 0.01]))  # about the fixed point
 
 
+@functools.cache
 def _heavy_top():
     def T(X, Xdot, t):
         Z, Z_rate = X.rotations[0], Xdot.rotations[0]
@@ -250,10 +274,11 @@ def test_the_heavy_top_in_its_rotation_tensor_follows_eulers_equations():
     ).ys[0]
     _close(X.rotations[:, 0], reference, 1e-9, "Z")
     _close(_orthogonality_error(X.rotations), 0.0, 1e-14, "ZᵀZ")
-    energy = jax.vmap(system.energy)(X, V, ts)
+    energy = np.asarray(jax.jit(jax.vmap(system.energy))(X, V, ts))
     _close(energy - energy[0], 0.0, 1e-10, "energy")
 
 
+@functools.cache
 def _heavy_top_in_the_vector_parameter():
     """The same top in Gibbs's vector parameter c = tan(χ/2) n (three scalars): R(c) and
     ω(c, ċ) from `lie` (the seed's (30)-(35))."""
@@ -283,16 +308,17 @@ def test_gravity_as_a_force_at_the_centre_is_the_potentials_force():
     by_force = bd.TensorialSystem(_heavy_top().T, Q=weight)
     by_potential = _heavy_top()
     rng = np.random.default_rng(17)
-    for _ in range(3):
-        X, V = _rotations_only(
-            lie.so3_exp(jnp.asarray(rng.normal(size=(1, 3)))), jnp.asarray(rng.normal(size=(1, 3)))
-        )
-        _close(
+
+    @jax.jit  # one program for the three draws, not one per primitive
+    def both(rotation, omega):
+        X, V = _rotations_only(lie.so3_exp(rotation), omega)
+        return (
             bd.tensorial_accelerations(by_force, X, V, 0.0).rotations,
             bd.tensorial_accelerations(by_potential, X, V, 0.0).rotations,
-            1e-13 * 100,
-            "ω̇",
         )
+
+    for _ in range(3):
+        _close(*both(rng.normal(size=(1, 3)), rng.normal(size=(1, 3))), 1e-13 * 100, "ω̇")
 
 
 def test_the_top_in_the_vector_parameter_agrees_until_its_singularity_and_then_says_so():
@@ -302,21 +328,35 @@ def test_the_top_in_the_vector_parameter_agrees_until_its_singularity_and_then_s
     parametrization, where the rotation tensor's runs on (its |ZᵀZ - 1| still rounding)."""
     Z0, rates = lie.so3_exp(jnp.array([0.4, 0.1, 0.0])), jnp.array([0.3, -0.2, 40.0])
     omega0 = Z0 @ rates
-    c0 = lie.vector_parameter_from_rotation(Z0)
-    along = jax.jacfwd(lie.angular_velocity_from_vector_parameter, argnums=1)(c0, jnp.zeros(3))
-    _, vectors, rotations = _empty()
-    gibbs = (
-        bd.TensorCoordinates(c0, vectors, rotations),
-        bd.TensorVelocities(jnp.linalg.solve(along, omega0), vectors, jnp.zeros((0, 3))),
-    )
-    short = jnp.array([0.0, 0.02, 0.04])
+
+    @jax.jit  # one program, not one per primitive
+    def gibbs_start(Z0, omega0):
+        c0 = lie.vector_parameter_from_rotation(Z0)
+        along = jax.jacfwd(lie.angular_velocity_from_vector_parameter, argnums=1)
+        _, vectors, rotations = _empty()
+        return (
+            bd.TensorCoordinates(c0, vectors, rotations),
+            bd.TensorVelocities(
+                jnp.linalg.solve(along(c0, jnp.zeros(3)), omega0), vectors, jnp.zeros((0, 3))
+            ),
+        )
+
+    @jax.jit
+    def angles_and_rotations(Z, c):
+        angles = jnp.linalg.norm(jax.vmap(lie.so3_log)(Z), axis=-1)
+        return angles, jax.vmap(lie.rotation_from_vector_parameter)(c)
+
+    gibbs = gibbs_start(Z0, omega0)
+    # Five saves in each run, as in the test above: the top's runs share one compiled
+    # rollout, the vector parameter's theirs.
+    short = jnp.linspace(0.0, 0.04, 5)
     X, _ = _rollout(bd.TensorialTerm(_heavy_top_in_the_vector_parameter()), gibbs, short)
     Z, _ = _rollout(bd.TensorialTerm(_heavy_top()), _rotations_only(Z0[None], omega0[None]), short)
-    angles = jnp.linalg.norm(jax.vmap(lie.so3_log)(Z.rotations[:, 0]), axis=-1)
-    assert float(jnp.max(angles)) < jnp.pi - 0.5
-    _close(jax.vmap(lie.rotation_from_vector_parameter)(X.scalars), Z.rotations[:, 0], 1e-9, "R")
+    angles, by_vector_parameter = angles_and_rotations(Z.rotations[:, 0], X.scalars)
+    assert float(np.max(angles)) < np.pi - 0.5
+    _close(by_vector_parameter, Z.rotations[:, 0], 1e-9, "R")
 
-    long = jnp.array([0.0, 0.3])
+    long = jnp.linspace(0.0, 0.3, 5)
     Z, _ = _rollout(bd.TensorialTerm(_heavy_top()), _rotations_only(Z0[None], omega0[None]), long)
     _close(_orthogonality_error(Z.rotations), 0.0, 1e-14, "ZᵀZ")
     with pytest.raises(Exception, match=re.escape("a vector parameter near a rotation by pi")):
@@ -352,14 +392,17 @@ def test_the_chains_equations_by_autodiff_are_the_seeds_closed_form_60():
     chain = _chain(3)
     system = chain.in_rotations()
     rng = np.random.default_rng(11)
-    for _ in range(4):
-        X, V = _rotations_only(
-            lie.so3_exp(jnp.asarray(rng.normal(size=(3, 3)))), jnp.asarray(rng.normal(size=(3, 3)))
-        )
-        _, A = _rotations_only(X.rotations, jnp.asarray(rng.normal(size=(3, 3))))
+
+    @jax.jit  # one program for the four draws, not one per primitive
+    def both(rotations, omega, alpha):
+        X, V = _rotations_only(lie.so3_exp(rotations), omega)
+        _, A = _rotations_only(X.rotations, alpha)
         closed = chain.closed_form_equations(X, V, A)
-        ours = bd.tensorial_equations(system, X, V, A, 0.0).rotations
-        _close(ours, closed, 1e-12 * float(jnp.max(jnp.abs(closed))), "(60)")
+        return bd.tensorial_equations(system, X, V, A, 0.0).rotations, closed
+
+    for _ in range(4):
+        ours, closed = both(*(rng.normal(size=(3, 3)) for _ in range(3)))
+        _close(ours, closed, 1e-12 * float(np.max(np.abs(closed))), "(60)")
 
 
 def test_three_gyroscopes_in_rotations_and_in_axes_move_alike():
@@ -374,20 +417,31 @@ def test_three_gyroscopes_in_rotations_and_in_axes_move_alike():
     in_axes = _rollout(
         bd.TensorialTerm(chain.in_axes(REFERENCE)), chain.axes_state(X0, V0, REFERENCE), ts
     )
-    axes = in_rotations[0].rotations @ AXIS
+
+    @jax.jit  # the diagnostics in one program, not one per primitive
+    def diagnostics(in_rotations, in_axes):
+        axes = in_rotations[0].rotations @ AXIS
+        energies = [
+            jax.vmap(system.energy)(X, V, ts)
+            for system, (X, V) in (
+                (chain.in_rotations(), in_rotations),
+                (chain.in_axes(REFERENCE), in_axes),
+            )
+        ]
+        omega = in_rotations[1].rotations
+        momentum = jax.vmap(chain.angular_momentum)(axes, jnp.cross(omega, axes), omega)
+        return axes, energies, momentum, jnp.linalg.norm(in_axes[0].unit_vectors, axis=-1)
+
+    axes, energies, momentum, norms = diagnostics(in_rotations, in_axes)
+    axes, momentum = np.asarray(axes), np.asarray(momentum)
     _close(axes, in_axes[0].unit_vectors, 1e-8, "axes")
-    assert float(jnp.max(jnp.abs(axes[-1] - axes[0]))) > 0.5  # the chain does move
-    for system, (X, V) in (
-        (chain.in_rotations(), in_rotations),
-        (chain.in_axes(REFERENCE), in_axes),
-    ):
-        energy = jax.vmap(system.energy)(X, V, ts)
+    assert float(np.max(np.abs(axes[-1] - axes[0]))) > 0.5  # the chain does move
+    for energy in energies:
+        energy = np.asarray(energy)
         _close(energy - energy[0], 0.0, 1e-9, "energy")
-    omega = in_rotations[1].rotations
-    momentum = jax.vmap(chain.angular_momentum)(axes, jnp.cross(omega, axes), omega)
     _close(momentum[:, 2] - momentum[0, 2], 0.0, 1e-9, "vertical angular momentum")
-    assert float(jnp.max(jnp.abs(momentum[:, :2] - momentum[:1, :2]))) > 1e-2  # gravity's moment
-    _close(jnp.linalg.norm(in_axes[0].unit_vectors, axis=-1), 1.0, 1e-14, "|e|")
+    assert float(np.max(np.abs(momentum[:, :2] - momentum[:1, :2]))) > 1e-2  # gravity's moment
+    _close(norms, 1.0, 1e-14, "|e|")
     _close(_orthogonality_error(in_rotations[0].rotations), 0.0, 1e-14, "ZᵀZ")
 
 
@@ -409,8 +463,11 @@ def _mujoco_start(model, joints):
 
 def _tensor_state_of(data, joints):
     """(X, V) read off MuJoCo's body frames and world angular velocities (`cvel`)."""
-    Z = jnp.asarray(data.xmat[2:].reshape(-1, 3, 3))
-    omega = jnp.asarray(data.cvel[2:, :3])
+    return _tensor_state_from(data.xmat[2:].reshape(-1, 3, 3), data.cvel[2:, :3].copy(), joints)
+
+
+@functools.partial(jax.jit, static_argnums=2)  # one program, not one per primitive
+def _tensor_state_from(Z, omega, joints):
     if joints == "ball":
         return _rotations_only(Z, omega)
     return _chain(3).universal_joint_state(Z, omega)
@@ -438,20 +495,25 @@ def test_the_chain_moves_as_its_multibody_and_as_mujoco(joints):
     system = chain.in_rotations() if joints == "ball" else chain.in_universal_joints()
     rotations = (lambda X: X.rotations) if joints == "ball" else chain.universal_joint_rotations
     X0, V0 = _tensor_state_of(data, joints)
-    _close(rotations(X0), data.xmat[2:].reshape(3, 3, 3), 1e-15, "bases")
-    _close(system.energy(X0, V0, 0.0), np.sum(data.energy), 1e-12, "energy")
+    bases, energy = jax.jit(lambda X, V: (rotations(X), system.energy(X, V, 0.0)))(X0, V0)
+    _close(bases, data.xmat[2:].reshape(3, 3, 3), 1e-15, "bases")
+    _close(energy, np.sum(data.energy), 1e-12, "energy")
     for _ in range(round(duration / model.opt.timestep)):
         mujoco.mj_step(model, data)
     by_mujoco = data.xmat[2:].reshape(3, 3, 3)
 
     X, _ = _rollout(bd.TensorialTerm(system), (X0, V0), jnp.array([0.0, duration]))
-    by_tensors = rotations(jax.tree.map(lambda x: x[-1], X))
     tree = bd.Multibody.from_mjcf(xml)
     start = bd.state_from_mujoco(tree, qpos, qvel, free_root=False)
     scene = bd.Scene(tree, (bd.Gravity(float(chain.gravity)),), base=bd.PrescribedBase.fixed())
     traj = bd.simulate(scene, start, duration, rtol=RTOL, atol=ATOL)
-    by_tree = tree.body_poses(traj.q[-1])[1:, :3, :3]
-    assert float(jnp.max(jnp.abs(by_tensors - rotations(X0)))) > 1.0
+
+    @jax.jit  # one program, not one per primitive
+    def final_rotations(X, q):
+        return rotations(jax.tree.map(lambda x: x[-1], X)), tree.body_poses(q)[1:, :3, :3]
+
+    by_tensors, by_tree = (np.asarray(R) for R in final_rotations(X, traj.q[-1]))
+    assert float(np.max(np.abs(by_tensors - np.asarray(bases)))) > 1.0
     _close(by_tree, by_tensors, 1e-10, "Multibody - (44)")
     _close(by_mujoco, by_tensors, 1e-7, "MuJoCo - (44)")
 
@@ -465,22 +527,19 @@ def test_the_universal_joint_chains_equations_are_the_seeds_61_and_62():
     chain = _chain(3)
     system = chain.in_universal_joints()
     rng = np.random.default_rng(13)
-    for _ in range(4):
-        axes = jnp.asarray(rng.normal(size=(2, 3)) * [1.0, 0.3, 1.0] + [0.0, 0.0, 1.5])
+
+    @jax.jit  # one program for the four draws, not one per primitive
+    def compared(axes, rotation, V, A):
         axes = axes / jnp.linalg.norm(axes, axis=-1, keepdims=True)
-        Z1 = lie.so3_exp(jnp.asarray(rng.normal(size=(1, 3))))
-        draw = lambda *shape: jnp.asarray(rng.normal(size=shape))
-        X = bd.TensorCoordinates(jnp.zeros(0), axes, Z1)
-        V = bd.TensorVelocities(jnp.zeros(0), draw(2, 3), draw(1, 3))
-        A = bd.TensorVelocities(jnp.zeros(0), draw(2, 3), draw(1, 3))
+        X = bd.TensorCoordinates(jnp.zeros(0), axes, lie.so3_exp(rotation))
+        V = bd.TensorVelocities(jnp.zeros(0), *V)
+        A = bd.TensorVelocities(jnp.zeros(0), *A)
         ours = bd.tensorial_equations(system, X, V, A, 0.0)
         first, rest = chain.closed_form_universal_equations(X, V, A)
-        scale = float(jnp.max(jnp.abs(first)))
-        _close(ours.rotations[0], first, 1e-12 * scale, "(62), Z₁")
         Z = chain.universal_joint_rotations(X)
         in_parents = jnp.einsum("kji,kj->ki", Z[:-1], rest)
         closing = jnp.sum(A.unit_vectors * axes, axis=-1, keepdims=True) * axes
-        _close(ours.unit_vectors - closing, in_parents, 1e-12 * scale, "(62), axes")
+        equations = ((ours.rotations[0], first), (ours.unit_vectors - closing, in_parents))
 
         rates = bd.rates_of(X, V)
         _, Zdot = jax.jvp(chain.universal_joint_rotations, (X,), (rates,))
@@ -498,7 +557,17 @@ def test_the_universal_joint_chains_equations_are_the_seeds_61_and_62():
         )
         turns = turns + jnp.cross(absolute_axes, relative_rates)  # A_j ė_j
         sums = V.rotations[:1] + jnp.cumsum(turns, axis=0)
-        _close(omega[1:], sums, 1e-14 * float(jnp.max(jnp.abs(sums))), "(61)")
+        return equations, (omega[1:], sums)
+
+    for _ in range(4):
+        axes = rng.normal(size=(2, 3)) * [1.0, 0.3, 1.0] + [0.0, 0.0, 1.5]
+        rotation = rng.normal(size=(1, 3))
+        V, A = (tuple(rng.normal(size=shape) for shape in ((2, 3), (1, 3))) for _ in range(2))
+        ((ours_first, first), axes_equations), (omega, sums) = compared(axes, rotation, V, A)
+        scale = float(np.max(np.abs(first)))
+        _close(ours_first, first, 1e-12 * scale, "(62), Z₁")
+        _close(*axes_equations, 1e-12 * scale, "(62), axes")
+        _close(omega, sums, 1e-14 * float(np.max(np.abs(sums))), "(61)")
 
 
 def _agm_quarter_period(m):
@@ -545,31 +614,35 @@ def test_the_heavy_symmetric_top_nutates_with_the_elliptic_integrals_period(form
     X0, V0 = _top_at_a_turning_point()
     system = chain.in_rotations() if formulation == "rotations" else chain.in_axes(REFERENCE)
     y0 = (X0, V0) if formulation == "rotations" else chain.axes_state(X0, V0, REFERENCE)
-    transverse, axial = chain.pivot_inertias()
-    axis, omega = X0.rotations[0] @ AXIS, V0.rotations[0]
+    e3, up = np.asarray(AXIS), np.asarray(UP)
+    # The diagnostics in numpy and in compiled programs, not primitive by primitive.
+    transverse, axial = (np.asarray(x) for x in chain.pivot_inertias())
+    axis, omega = np.asarray(X0.rotations[0]) @ e3, np.asarray(V0.rotations[0])
     spin = float(omega @ axis)
-    pivot_inertia = transverse[0] * jnp.eye(3) + (axial[0] - transverse[0]) * jnp.outer(axis, axis)
-    vertical = float((pivot_inertia @ omega) @ UP)
-    period, f = _nutation(chain, float(system.energy(*y0, 0.0)), spin, vertical)
+    pivot_inertia = transverse[0] * np.eye(3) + (axial[0] - transverse[0]) * np.outer(axis, axis)
+    vertical = float((pivot_inertia @ omega) @ up)
+    energy = float(jax.jit(lambda X, V: system.energy(X, V, 0.0))(*y0))
+    period, f = _nutation(chain, energy, spin, vertical)
     ts = jnp.array([0.0, 0.5, 1.0, 2.0]) * period
-    X, V = _rollout(bd.TensorialTerm(system), y0, ts)
+    X, V = jax.tree.map(np.asarray, _rollout(bd.TensorialTerm(system), y0, ts))
     if formulation == "rotations":
-        axes, axis_omega, omegas = X.rotations[:, 0] @ AXIS, V.rotations[:, 0], V.rotations[:, 0]
+        axes, axis_omega, omegas = X.rotations[:, 0] @ e3, V.rotations[:, 0], V.rotations[:, 0]
     else:
         axes, axis_omega = X.unit_vectors[:, 0], V.unit_vectors[:, 0]
-        omegas = jax.vmap(lie.angular_velocity_from_unit_vector_and_angle, (0, 0, 0, 0, None))(
-            axes, X.scalars[:, 0], jnp.cross(axis_omega, axes), V.scalars[:, 0], REFERENCE
-        )
-    u = np.asarray(axes @ UP)
-    u_rate = np.asarray(jnp.cross(axis_omega, axes) @ UP)
+        omegas = jax.jit(
+            jax.vmap(lie.angular_velocity_from_unit_vector_and_angle, (0, 0, 0, 0, None))
+        )(axes, X.scalars[:, 0], np.cross(axis_omega, axes), V.scalars[:, 0], REFERENCE)
+        omegas = np.asarray(omegas)
+    u = axes @ up
+    u_rate = np.cross(axis_omega, axes) @ up
     u_acceleration = 0.5 * np.polynomial.polynomial.polyval(u, np.polynomial.polynomial.polyder(f))
     _close(u_rate / u_acceleration, 0.0, 1e-9 * period, "the period's error, s")
     assert u[1] < u[0] - 0.3  # it did nutate, to the other root, and back
     _close(u[[2, 3]], u[0], 1e-9, "u after whole periods")
-    spins = jnp.sum(omegas * axes, axis=-1)
+    spins = np.sum(omegas * axes, axis=-1)
     _close(spins, spin, 1e-9, "spin")
     moments = transverse[0] * omegas + (axial[0] - transverse[0]) * spins[:, None] * axes
-    _close(moments @ UP, vertical, 1e-9, "vertical angular momentum")
+    _close(moments @ up, vertical, 1e-9, "vertical angular momentum")
 
 
 # --- Integrators: order, gradients, batches ----------------------------------------------------
@@ -594,11 +667,15 @@ def test_tensorial_rkmk4_converges_with_order_four():
     chain = _chain(1)
     y0 = _top_at_a_turning_point()
     exact = _rollout(bd.TensorialTerm(chain.in_rotations()), y0, jnp.array([0.0, 0.2]))[0]
+    # The step counts as data: one compiled solve for the three, and the gradient's below.
     errors = [
         float(
-            jnp.max(
-                jnp.abs(
-                    _fixed_steps(chain.in_rotations(), y0, s)[0].rotations[-1] - exact.rotations[-1]
+            np.max(
+                np.abs(
+                    np.asarray(_fixed_steps(chain.in_rotations(), y0, jnp.asarray(s))[0].rotations)[
+                        -1
+                    ]
+                    - np.asarray(exact.rotations)[-1]
                 )
             )
         )
@@ -610,7 +687,7 @@ def test_tensorial_rkmk4_converges_with_order_four():
 
 def _final_axis_height(mass):
     chain = eqx.tree_at(lambda c: c.masses, _chain(1), jnp.reshape(mass, (1,)))
-    X, _ = _fixed_steps(chain.in_rotations(), _top_at_a_turning_point(), 40.0)
+    X, _ = _fixed_steps(chain.in_rotations(), _top_at_a_turning_point(), jnp.asarray(40.0))
     return (X.rotations[-1, 0] @ AXIS) @ UP
 
 
