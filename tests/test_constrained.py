@@ -82,9 +82,9 @@ def _energy_kept_through_simulate(scene, state, constraints):
     traj = bd.simulate(scene, state, 1.0, rtol=1e-11, atol=1e-11, saveat=diffrax.SaveAt(ts=ts))
     energy = np.asarray(traj.energy())
     np.testing.assert_allclose(energy, energy[0], rtol=1e-9)
-    residual = jax.vmap(lambda p: constraints.residual(constraints(p)))(traj.q)
+    residual = np.asarray(jax.jit(jax.vmap(lambda p: constraints.residual(constraints(p))))(traj.q))
     np.testing.assert_allclose(traj.constraint_residual(), residual, rtol=0, atol=1e-15)
-    return np.asarray(traj.q[:, 0]), float(jnp.max(jnp.abs(residual)))
+    return np.asarray(traj.q[:, 0]), float(np.max(np.abs(residual)))
 
 
 def test_a_coupled_chain_keeps_its_energy_through_simulate():
@@ -207,32 +207,42 @@ def test_an_imported_models_joint_couplings_are_mujocos(gripper):
     assert isinstance(system, bd.ConstrainedSystem) and system.shape_dim == 2  # left, thumb1
     coupling, tree = system.constraints, system.system
     key = jax.random.PRNGKey(11)
-    for k in jax.random.split(key, 3):
+
+    @jax.jit  # one program for the three draws, not one per primitive
+    def on_and_off(k):
         ka, kb = jax.random.split(k)
         p, pdot = 0.3 * jax.random.normal(ka, (2,)), jax.random.normal(kb, (2,))
         q, qdot = jax.jvp(coupling, (p,), (pdot,))
+        off = q + 0.01 * jnp.arange(1.0, 6.0)
+        return q, qdot, off, coupling.residual(off)
+
+    for k in jax.random.split(key, 3):
+        q, qdot, off, residual = on_and_off(k)
         violation, rate, _ = _mujoco_equalities(mujoco, model, tree, q, qdot)
         # MuJoCo finds its equalities kept, in position and velocity
         np.testing.assert_allclose(violation, 0.0, atol=1e-15)
         np.testing.assert_allclose(rate, 0.0, atol=1e-14)
         # off them, MuJoCo's violations are the coupling's residuals
-        off = q + 0.01 * jnp.arange(1.0, 6.0)
         violation, _, _ = _mujoco_equalities(mujoco, model, tree, off, qdot)
-        np.testing.assert_allclose(violation, coupling.residual(off), rtol=1e-12, atol=1e-15)
+        np.testing.assert_allclose(violation, residual, rtol=1e-12, atol=1e-15)
 
 
 def test_an_imported_models_springs_and_dampers_act_on_its_full_shape(gripper):
     mujoco, model, scene = gripper
     coupling, tree = scene.system.constraints, scene.system.system
     p, pdot = jnp.array([0.02, 0.4]), jnp.array([0.3, -1.2])
-    q, qdot = jax.jvp(coupling, (p,), (pdot,))
+    q, qdot = jax.jit(lambda p, pdot: jax.jvp(coupling, (p,), (pdot,)))(p, pdot)
     *_, passive = _mujoco_equalities(mujoco, model, tree, q, qdot)
-    # the shape force on the free coordinates is J^T of MuJoCo's on the joints
-    expected = jax.vjp(coupling, p)[1](jnp.asarray(passive))[0]
-    shape_effects = [e for e in scene.effects if not isinstance(e, bd.Gravity)]
-    kin = bd.Kinematics(0.0, jnp.eye(4), p, jnp.zeros(6), pdot)
-    ours = sum(e.generalized_force(scene.system, kin)[1] for e in shape_effects)
-    np.testing.assert_allclose(ours, expected, rtol=1e-12)
+
+    @jax.jit  # one program, not one per primitive
+    def compared(p, pdot, passive):
+        # the shape force on the free coordinates is J^T of MuJoCo's on the joints
+        expected = jax.vjp(coupling, p)[1](passive)[0]
+        shape_effects = [e for e in scene.effects if not isinstance(e, bd.Gravity)]
+        kin = bd.Kinematics(0.0, jnp.eye(4), p, jnp.zeros(6), pdot)
+        return sum(e.generalized_force(scene.system, kin)[1] for e in shape_effects), expected
+
+    np.testing.assert_allclose(*compared(p, pdot, jnp.asarray(passive)), rtol=1e-12)
 
 
 def test_states_of_a_coupled_model_go_to_mujoco_and_back(gripper):
@@ -328,20 +338,27 @@ def _solutions_and_derivatives(loop, p, h):
     )  # fmt: skip
 
 
+@eqx.filter_jit
+def _residuals(loop, q, p_far):
+    """The loop's residuals at its reference, at `q` and at its solution at `p_far` (one
+    compiled program, not one per primitive)."""
+    return loop.residual(jnp.zeros(3)), loop.residual(q), loop.residual(loop(p_far))
+
+
 def test_a_closed_loop_is_assembled_and_solved_with_the_implicit_functions_derivatives():
     system, loop = _four_bar()
-    np.testing.assert_allclose(loop.residual(jnp.zeros(3)), 0.0, atol=1e-15)  # assembled
     h = 1e-6
-    q, (above, below), first, (first_above, first_below), second = _solutions_and_derivatives(
-        loop, jnp.array([0.4]), h
+    q, (above, below), first, (first_above, first_below), second = jax.tree.map(
+        np.asarray, _solutions_and_derivatives(loop, jnp.array([0.4]), h)
     )
-    assert float(q[0]) == 0.4 and float(jnp.max(jnp.abs(loop.residual(q)))) < 1e-14
-    assert float(jnp.min(jnp.abs(q[1:]))) > 0.05  # the coupler and the rocker turned
+    # Far from the reference (the crank turned by 3 rad), on the same assembly mode.
+    at_reference, at_q, far = (np.asarray(r) for r in _residuals(loop, q, jnp.array([3.0])))
+    np.testing.assert_allclose(at_reference, 0.0, atol=1e-15)  # assembled
+    assert float(q[0]) == 0.4 and float(np.max(np.abs(at_q))) < 1e-14
+    assert float(np.min(np.abs(q[1:]))) > 0.05  # the coupler and the rocker turned
     np.testing.assert_allclose(first, (above - below) / (2 * h), rtol=1e-8)
     np.testing.assert_allclose(second, (first_above - first_below) / (2 * h), rtol=1e-6)
-    # Far from the reference (the crank turned by 3 rad), on the same assembly mode.
-    far = loop(jnp.array([3.0]))
-    assert float(jnp.max(jnp.abs(loop.residual(far)))) < 1e-13
+    assert float(np.max(np.abs(far))) < 1e-13
 
 
 def test_a_closed_loop_moves_as_with_lagrange_multipliers():
