@@ -51,20 +51,27 @@ def test_driven_shape_equation_is_the_reference_forms_shape_rows(name, key):
     q = random_shapes(system, keys[0], 1)[0]
     xi, xi_dot = jax.random.normal(keys[1], (2, 6))
     qdot, qddot = jax.random.normal(keys[2], (2, d))
-    G, dG = system.metric_and_derivative(q)
-    v = jnp.concatenate([xi, qdot])
-    p = G[:6] @ v
-    bias = (
-        jnp.concatenate([bd.lie.ad(xi).T @ p, 0.5 * (dG @ v) @ v]) - jnp.tensordot(qdot, dG, 1) @ v
-    )
-    forces = G @ jnp.concatenate([xi_dot, qddot]) - bias  # (F_b, Q_H) of that motion
-    Q = forces[6:]
-    np.testing.assert_allclose(
-        bd.driven_shape_acceleration(system, q, xi, xi_dot, qdot, Q), qddot, rtol=1e-10, atol=1e-10
-    )
-    np.testing.assert_allclose(
-        bd.driven_shape_force(system, q, xi, xi_dot, qdot, qddot), Q, rtol=1e-10, atol=1e-10
-    )
+
+    @jax.jit  # one program, not one per primitive
+    def driven(q, xi, xi_dot, qdot, qddot):
+        G, dG = system.metric_and_derivative(q)
+        v = jnp.concatenate([xi, qdot])
+        p = G[:6] @ v
+        bias = (
+            jnp.concatenate([bd.lie.ad(xi).T @ p, 0.5 * (dG @ v) @ v])
+            - jnp.tensordot(qdot, dG, 1) @ v
+        )
+        forces = G @ jnp.concatenate([xi_dot, qddot]) - bias  # (F_b, Q_H) of that motion
+        Q = forces[6:]
+        return (
+            Q,
+            bd.driven_shape_acceleration(system, q, xi, xi_dot, qdot, Q),
+            bd.driven_shape_force(system, q, xi, xi_dot, qdot, qddot),
+        )
+
+    Q, acceleration, force = driven(q, xi, xi_dot, qdot, qddot)
+    np.testing.assert_allclose(acceleration, qddot, rtol=1e-10, atol=1e-10)
+    np.testing.assert_allclose(force, Q, rtol=1e-10, atol=1e-10)
 
 
 def test_an_arm_on_a_fixed_base_moves_as_mujoco_moves_it():
