@@ -50,11 +50,14 @@ from ._gyroscope_file import GyroscopeChainFile, is_gyroscope_file
 from ._holonomy import curvature_by_holonomy, horizontal_lift, square_loop_holonomy
 from ._identify_file import IdentificationFile
 from ._modes import (
+    AbstractFieldAlgorithm,
     AbstractFreeMotionMode,
     AbstractMode,
     AbstractPlaneContactMode,
     AbstractWindowChart,
+    ArticulatedBodyField,
     CentreOfMassMode,
+    DenseField,
     FloatingBase,
     Free,
     FreeShapeMode,
@@ -185,6 +188,7 @@ __all__ = [
     "AbstractCentralGravity",
     "AbstractContactSurface",
     "AbstractEffect",
+    "AbstractFieldAlgorithm",
     "AbstractFrame",
     "AbstractFreeMotionMode",
     "AbstractHolonomicConstraints",
@@ -207,6 +211,7 @@ __all__ = [
     "AbstractWindowChart",
     "AffineBody",
     "AppellEquations",
+    "ArticulatedBodyField",
     "BodyMotion",
     "BodywiseGravityGradient",
     "Boosted",
@@ -219,6 +224,7 @@ __all__ = [
     "Composite",
     "ConstrainedSystem",
     "ImplicitConstraints",
+    "DenseField",
     "DenseMetricJet",
     "Diagnostics",
     "DiscContact",

@@ -67,6 +67,16 @@ class AbstractEffect(eqx.Module):
         """The generalized force `(F_b (6,), Q_H (d,))` at the kinematics `kin`."""
 
 
+def total_force(effects, system: AbstractSystem, kin: Kinematics):
+    """The sum of `effects`' generalized forces `(F_b, Q_H)` on `system` at `kin`."""
+    F = jnp.zeros(6, kin.q.dtype)
+    Q = jnp.zeros_like(kin.q)
+    for effect in effects:
+        dF, dQ = effect.generalized_force(system, kin)
+        F, Q = F + dF, Q + dQ
+    return F, Q
+
+
 class AbstractPotential(AbstractEffect):
     r"""A conservative effect given by its potential $\Pi(t, g, q)$; forces by autodiff.
 

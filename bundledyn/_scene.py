@@ -3,13 +3,28 @@
 import warnings
 
 import equinox as eqx
-import jax.numpy as jnp
 import numpy as np
 
 from ._coupled_effects import on_full_shape
-from ._effects import AbstractEffect, Gravity, Kinematics, ShapeDamper, ShapeSpring
+from ._effects import (
+    AbstractEffect,
+    Gravity,
+    Kinematics,
+    ShapeDamper,
+    ShapeSpring,
+    total_force,
+)
 from ._frames import AbstractFrame
-from ._modes import AbstractMode, FloatingBase, Free, Prescribed, PrescribedBase, mode_of
+from ._modes import (
+    AbstractFieldAlgorithm,
+    AbstractMode,
+    FloatingBase,
+    Free,
+    Prescribed,
+    PrescribedBase,
+    default_algorithm,
+    mode_of,
+)
 from ._systems._base import AbstractSystem
 from ._systems._constrained import ConstrainedSystem, JointCoupling
 from ._systems._mujoco_import import (
@@ -43,14 +58,22 @@ class Scene(eqx.Module):
     - `mode`: an `AbstractMode` of your own, in place of `shape` and `base` (which choose
       among the built-in modes: `FreeShapeMode`, `RigidBodyMode`, `PrescribedShapeMode`,
       `PrescribedBaseMode`).
+    - `algorithm`: how the field solves for the accelerations, an `AbstractFieldAlgorithm`:
+      `ArticulatedBodyField()` (the default for a `Multibody` at its base with shape
+      coordinates, work growing with the bodies) or `DenseField()` (the default for every
+      other system; the shorter compile for long chains). Both give the same motion to
+      rounding.
     """
 
     system: AbstractSystem
     effects: list[AbstractEffect]
     frame: AbstractFrame | None
     mode: AbstractMode
+    algorithm: AbstractFieldAlgorithm
 
-    def __init__(self, system, effects=(), shape=None, frame=None, *, base=None, mode=None):
+    def __init__(
+        self, system, effects=(), shape=None, frame=None, *, base=None, mode=None, algorithm=None
+    ):
         if not isinstance(system, AbstractSystem):
             raise ValueError(f"`Scene.system` must be a system, got {type(system).__name__}.")
         self.system = system
@@ -64,6 +87,7 @@ class Scene(eqx.Module):
         elif shape is not None or base is not None:
             raise ValueError("give a `Scene` either `mode` or `shape` and `base`, not both.")
         self.mode = mode
+        self.algorithm = default_algorithm(system) if algorithm is None else algorithm
 
     def __check_init__(self):
         for e in self.effects:
@@ -78,6 +102,12 @@ class Scene(eqx.Module):
         if not isinstance(self.mode, AbstractMode):
             raise ValueError(f"`Scene.mode` must be an AbstractMode, got {self.mode!r}.")
         self.mode.check(self.system, self.frame)
+        if not isinstance(self.algorithm, AbstractFieldAlgorithm):
+            raise ValueError(
+                "`Scene.algorithm` must be an AbstractFieldAlgorithm (`ArticulatedBodyField()` "
+                f"or `DenseField()`), got {self.algorithm!r}."
+            )
+        self.algorithm.check(self.system)
 
     @property
     def shape(self) -> Free | Prescribed:
@@ -144,12 +174,7 @@ class Scene(eqx.Module):
 
     def forces(self, kin: Kinematics):
         """Total generalized force `(F_b, Q_H)` of the scene's effects at `kin`."""
-        F = jnp.zeros(6, kin.q.dtype)
-        Q = jnp.zeros_like(kin.q)
-        for effect in self.effects:
-            dF, dQ = effect.generalized_force(self.system, kin)
-            F, Q = F + dF, Q + dQ
-        return F, Q
+        return total_force(self.effects, self.system, kin)
 
 
 def system_of_parts(parts: ModelParts, *, section=0) -> AbstractSystem:

@@ -228,9 +228,9 @@ def test_take_is_jnp_take_and_differentiates_as_it(case):
 
 @pytest.mark.parametrize("name", ["mjcf_chain5", "tree4"])
 def test_tree_field_reverse_mode_has_no_scatter(name):
-    """The tree's constant indexing is `take`'s slices: a gather's transpose, a scatter-add,
-    is a loop on XLA's CPU, which slows the field's VJP."""
-    scene = bd.Scene(SYSTEMS[name]())
+    """The dense field's constant indexing into the tree is `take`'s slices: a gather's
+    transpose, a scatter-add, is a loop on XLA's CPU, which slows the field's VJP."""
+    scene = bd.Scene(SYSTEMS[name](), algorithm=bd.DenseField())
     d = scene.system.shape_dim
     state = bd.State(jnp.eye(4), 0.1 * jnp.ones(d), 0.2 * jnp.ones(6), 0.3 * jnp.ones(d))
     term = bd.SceneTerm(scene)

@@ -4,6 +4,12 @@ The built-in modes are chosen from `Scene`'s `shape` and `base` arguments by the
 registered in `SELECTIONS`: a new built-in mode is one file here and one line there.
 """
 
+from ._algorithms import (
+    AbstractFieldAlgorithm,
+    ArticulatedBodyField,
+    DenseField,
+    default_algorithm,
+)
 from ._base import AbstractFreeMotionMode, AbstractMode, SceneParts, frame_shift
 from ._centre_of_mass import CentreOfMassMode
 from ._charts import AbstractWindowChart, ChannelScales, DrivenChart, FloatingChart
@@ -19,6 +25,10 @@ from ._rolling_wheel import RollingWheelMode, Wheel
 from ._skating import SkatingMode
 
 __all__ = [
+    "AbstractFieldAlgorithm",
+    "ArticulatedBodyField",
+    "DenseField",
+    "default_algorithm",
     "AbstractFreeMotionMode",
     "AbstractMode",
     "AbstractPlaneContactMode",

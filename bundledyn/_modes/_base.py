@@ -14,11 +14,12 @@ import equinox as eqx
 import jax
 
 from .. import lie
-from .._effects import Kinematics
+from .._effects import AbstractEffect, Kinematics
 from .._frames import AbstractFrame
 from .._linalg import matmul
 from .._state import State
 from .._systems._base import AbstractSystem
+from ._algorithms import AbstractFieldAlgorithm
 from ._charts import AbstractWindowChart
 from ._motions import FloatingBase, Free, Prescribed, PrescribedBase
 
@@ -26,13 +27,20 @@ __all__ = ["AbstractFreeMotionMode", "AbstractMode", "SceneParts", "frame_shift"
 
 
 class SceneParts(Protocol):
-    """What a mode reads of its scene: the system, the frame and the effects' forces."""
+    """What a mode reads of its scene: the system, the frame, the effects and their forces,
+    and the field's algorithm (`AbstractFieldAlgorithm`)."""
 
     @property
     def system(self) -> AbstractSystem: ...
 
     @property
     def frame(self) -> AbstractFrame | None: ...
+
+    @property
+    def effects(self) -> list[AbstractEffect]: ...
+
+    @property
+    def algorithm(self) -> AbstractFieldAlgorithm: ...
 
     def forces(self, kin: Kinematics) -> tuple[jax.Array, jax.Array]: ...
 

@@ -2,7 +2,7 @@ r"""What the modes with a floating base share: the field of (2.6)–(2.7) in the
 velocity, and the state seen from the Galilean frame."""
 
 from .. import lie
-from .._dynamics import bundle_geometry, locked_acceleration, shape_acceleration
+from .._dynamics import bundle_geometry, locked_acceleration
 from .._effects import Kinematics
 from .._geometry import connection
 from .._linalg import matmul
@@ -18,30 +18,25 @@ __all__ = [
 ]
 
 
-def _floating_rates(scene: SceneParts, t, g, q, U, qdot):
-    r"""$\xi$, $\dot U$ (2.7), and the geometry and forces the shape equation needs.
+def _seen_from_the_frame(scene: SceneParts, t, g, U, rates):
+    r"""`rates(g, U)`'s $(\xi, \dot U, \ldots)$ in the Galilean frame, seen from the
+    scene's frame.
 
     In a moving frame the locked velocity is relative to it: the true one is $U +
     \operatorname{Ad}_{g^{-1}}\vartheta$, and $\dot U$ gains $[\xi, \operatorname{Ad}_{g^{-1}}\vartheta]
     - \operatorname{Ad}_{g^{-1}}\dot\vartheta$ (seed 004, (2.9)–(2.10)).
     """
     if scene.frame is None:
-        geo = bundle_geometry(scene.system, q, U, qdot)
-        xi = U - matmul(geo.A, qdot)
-        F, Q = scene.forces(Kinematics(t, g, q, xi, qdot))
-        return xi, locked_acceleration(geo, F), geo, F, Q
+        return rates(g, U)
     shift, shift_dot, M = frame_shift(scene.frame, t, g)
-    geo = bundle_geometry(scene.system, q, U + shift, qdot)
-    xi = U + shift - matmul(geo.A, qdot)
-    F, Q = scene.forces(Kinematics(t, matmul(M, g), q, xi, qdot))
+    xi, Udot, *rest = rates(matmul(M, g), U + shift)
     xi = xi - shift
-    Udot = locked_acceleration(geo, F) + lie.bracket(xi, shift) - shift_dot
-    return xi, Udot, geo, F, Q
+    return xi, Udot + lie.bracket(xi, shift) - shift_dot, *rest
 
 
 def floating_field(scene: SceneParts, t, g, q, U, qdot):
     r"""The body twist $\xi$ of the pose and the rates $\dot U$ (2.7) and $\ddot q$ (2.6)
-    of a free shape on a floating base.
+    of a free shape on a floating base, by the scene's `algorithm`.
 
     **Arguments:**
 
@@ -53,8 +48,11 @@ def floating_field(scene: SceneParts, t, g, q, U, qdot):
 
     `(xi, Udot, qddot)`.
     """
-    xi, Udot, geo, F, Q = _floating_rates(scene, t, g, q, U, qdot)
-    return xi, Udot, shape_acceleration(geo, F, Q)
+
+    def rates(g, U):
+        return scene.algorithm.floating(scene, t, g, q, U, qdot)
+
+    return _seen_from_the_frame(scene, t, g, U, rates)
 
 
 def locked_field(scene: SceneParts, t, g, q, U, qdot):
@@ -65,8 +63,14 @@ def locked_field(scene: SceneParts, t, g, q, U, qdot):
 
     `(xi, Udot)`.
     """
-    xi, Udot, _, _, _ = _floating_rates(scene, t, g, q, U, qdot)
-    return xi, Udot
+
+    def rates(g, U):
+        geo = bundle_geometry(scene.system, q, U, qdot)
+        xi = U - matmul(geo.A, qdot)
+        F, _ = scene.forces(Kinematics(t, g, q, xi, qdot))
+        return xi, locked_acceleration(geo, F)
+
+    return _seen_from_the_frame(scene, t, g, U, rates)
 
 
 def body_twist(scene: SceneParts, q, U, qdot):

@@ -2,7 +2,6 @@ r"""A base that follows a given motion: only the shape equation, driven by it, i
 
 import jax.numpy as jnp
 
-from .._dynamics import driven_shape_acceleration
 from .._effects import Kinematics
 from .._geometry import locked_velocity
 from .._state import State
@@ -70,8 +69,7 @@ class PrescribedBaseMode(AbstractMode):
     def body_field(self, scene: SceneParts, t, y):
         q, qdot = self._shape(scene, y)
         g, xi, xi_dot = self.motion.at(t)
-        _, Q = scene.forces(Kinematics(t, g, q, xi, qdot))
-        qddot = driven_shape_acceleration(scene.system, q, xi, xi_dot, qdot, Q)
+        qddot = scene.algorithm.driven(scene, t, g, q, xi, xi_dot, qdot)
         return xi, jnp.concatenate([qdot, qddot])
 
     def kinematics(self, scene: SceneParts, t, y):
