@@ -2,6 +2,8 @@
 by Newton's method. Checked against the linearized benchmark of Meijaard, Papadopoulos, Ruina &
 Schwab (2007, Proc. R. Soc. A 463, Table 2), finite differences and its first integral."""
 
+import functools
+
 import diffrax
 import equinox as eqx
 import jax
@@ -90,6 +92,7 @@ def test_the_weave_speeds_gradient_in_the_trail_equals_finite_differences():
     np.testing.assert_allclose(gradient, central, rtol=1e-6)
 
 
+@functools.partial(jax.jit, static_argnums=0)  # one program, not one per primitive
 def _random_states(n, key):
     """`n` states `(q, e)` with both wheels on the ground: random position, yaw and wheel
     angles, roll and steer within 0.3 rad, rates of a bicycle ridden at a few m/s."""
@@ -103,21 +106,24 @@ def _random_states(n, key):
 
 def test_the_pitch_keeps_the_front_wheel_on_the_ground_and_has_the_implicit_derivative():
     roll, steer = jnp.array(0.2), jnp.array(-0.35)
-    pitch = BIKE.pitch(roll, steer)
-    assert abs(float(BIKE.front_contact_height(pitch, roll, steer))) < 1e-15
-    assert float(BIKE.pitch(0.0, 0.0)) == 0.0  # upright: level
-    gradient = jax.grad(BIKE.pitch, argnums=(0, 1))(roll, steer)
+    # Each function compiled once (its Newton solve included), not run primitive by primitive.
+    pitch_of = jax.jit(lambda roll, steer: BIKE.pitch(roll, steer))
+    height = jax.jit(lambda pitch, roll, steer: BIKE.front_contact_height(pitch, roll, steer))
+    pitch = pitch_of(roll, steer)
+    assert abs(float(height(pitch, roll, steer))) < 1e-15
+    assert float(pitch_of(jnp.array(0.0), jnp.array(0.0))) == 0.0  # upright: level
+    gradient = jax.jit(jax.grad(pitch_of, argnums=(0, 1)))(roll, steer)
     h = 1e-6
     central = [
-        (BIKE.pitch(roll + h, steer) - BIKE.pitch(roll - h, steer)) / (2 * h),
-        (BIKE.pitch(roll, steer + h) - BIKE.pitch(roll, steer - h)) / (2 * h),
+        (float(pitch_of(roll + h, steer)) - float(pitch_of(roll - h, steer))) / (2 * h),
+        (float(pitch_of(roll, steer + h)) - float(pitch_of(roll, steer - h))) / (2 * h),
     ]
     np.testing.assert_allclose(gradient, central, rtol=1e-7, atol=1e-10)
     # The second derivative too (Maggi's equations differentiate the placement twice).
-    second = jax.grad(jax.grad(BIKE.pitch))(roll, steer)
-    first = jax.grad(BIKE.pitch)
+    second = jax.jit(jax.grad(jax.grad(pitch_of)))(roll, steer)
+    first = jax.jit(jax.grad(pitch_of))
     np.testing.assert_allclose(
-        second, (first(roll + h, steer) - first(roll - h, steer)) / (2 * h), rtol=1e-6
+        second, (float(first(roll + h, steer)) - float(first(roll - h, steer))) / (2 * h), rtol=1e-6
     )
 
 
@@ -125,12 +131,17 @@ def test_maggi_and_appell_give_the_same_accelerations():
     maggi = bd.NonholonomicTerm(BIKE)
     appell = bd.NonholonomicTerm(BIKE, bd.AppellEquations())
     q, e = _random_states(4, jax.random.PRNGKey(0))
-    for a, b in zip(
-        jax.vmap(lambda q, e: maggi.vf(0.0, (q, e), None)[1])(q, e),
-        jax.vmap(lambda q, e: appell.vf(0.0, (q, e), None)[1])(q, e),
-        strict=True,
-    ):
-        np.testing.assert_allclose(a, b, rtol=0, atol=1e-10 * max(1.0, float(jnp.max(jnp.abs(b)))))
+
+    @jax.jit  # one program, not one per primitive
+    def both(q, e):
+        return (
+            jax.vmap(lambda q, e: maggi.vf(0.0, (q, e), None)[1])(q, e),
+            jax.vmap(lambda q, e: appell.vf(0.0, (q, e), None)[1])(q, e),
+        )
+
+    for a, b in zip(*both(q, e), strict=True):
+        a, b = np.asarray(a), np.asarray(b)
+        np.testing.assert_allclose(a, b, rtol=0, atol=1e-10 * max(1.0, float(np.max(np.abs(b)))))
 
 
 @pytest.mark.slow  # a 4 s nonlinear solve of Maggi's equations, compiled with their second derivatives
