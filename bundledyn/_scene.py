@@ -120,7 +120,9 @@ class Scene(eqx.Module):
         return self.mode.base
 
     @classmethod
-    def from_mjcf(cls, source, *, section=0, passive: bool = False, gravity: bool = False):
+    def from_mjcf(
+        cls, source, *, section=0, passive: bool = False, gravity: bool = False, algorithm=None
+    ):
         r"""The scene of an MJCF model: its tree and, when asked, its springs and dampers and
         its gravity (MuJoCo's own parser; the `mujoco` extra).
 
@@ -149,10 +151,12 @@ class Scene(eqx.Module):
         parts = parts_from_mjcf(source, passive=passive)
         system = system_of_parts(parts, section=section)
         effects = model_effects(parts, passive=passive, gravity=gravity)
-        return cls(system, effects, base=model_base(parts, section=section))
+        return cls(system, effects, base=model_base(parts, section=section), algorithm=algorithm)
 
     @classmethod
-    def from_urdf(cls, path, *, section=0, passive: bool = False, gravity: bool = False):
+    def from_urdf(
+        cls, path, *, section=0, passive: bool = False, gravity: bool = False, algorithm=None
+    ):
         r"""The scene of a URDF model: its tree and, when asked, its joints' dampers and
         gravity (MuJoCo's own URDF parser; the `mujoco` extra).
 
@@ -163,6 +167,7 @@ class Scene(eqx.Module):
         - `passive`: add the joints' `<dynamics damping>` as a `ShapeDamper`.
         - `gravity`: add standard gravity, $9.81$ m/s² along $-z$ (URDF states none; this
           is MuJoCo's default).
+        - `algorithm`: as for `Scene`.
 
         **Returns:**
 
@@ -170,7 +175,8 @@ class Scene(eqx.Module):
         """
         parts = parts_from_urdf(path, passive=passive)
         system = system_of_parts(parts, section=section)
-        return cls(system, model_effects(parts, passive=passive, gravity=gravity))
+        effects = model_effects(parts, passive=passive, gravity=gravity)
+        return cls(system, effects, algorithm=algorithm)
 
     def forces(self, kin: Kinematics):
         """Total generalized force `(F_b, Q_H)` of the scene's effects at `kin`."""

@@ -396,3 +396,16 @@ def test_refuses_what_it_does_not_cover(system):
     with pytest.raises(ValueError, match="Use `DenseField\\(\\)`"):
         bd.Scene(system(), algorithm=bd.ArticulatedBodyField())
     assert isinstance(bd.Scene(system()).algorithm, bd.DenseField)
+
+
+def test_an_import_takes_the_algorithm_it_is_asked_for():
+    """`Scene.from_mjcf(..., algorithm=)` keeps the model's base and effects with the
+    algorithm asked for, and refuses the recursions where its section is not the base."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        dense = bd.Scene.from_mjcf(WELDED, passive=True, gravity=True, algorithm=bd.DenseField())
+        with pytest.raises(ValueError, match="Use `DenseField"):
+            bd.Scene.from_mjcf(FLOATING, section=2, algorithm=bd.ArticulatedBodyField())
+    assert isinstance(dense.algorithm, bd.DenseField)
+    assert isinstance(dense.mode, bd.PrescribedBaseMode)
+    assert len(dense.effects) == len(scene("welded").effects)
