@@ -127,6 +127,49 @@ def metric_error(model, data, scene, held):
     return float(np.linalg.norm(ours - M) / np.linalg.norm(M)), state
 
 
+def field_times(scene, state, model, data, repeats):
+    """The scene's field (its default algorithm), the dense field where that is another,
+    and `mj_forward`, per evaluation in alternation: `{"field", "mj_forward", "ratio"}`
+    and, beside a default other than the dense field, `"dense"` and `"dense_ratio"`."""
+    samplers = {
+        "field": scene_field_sampler(scene, state),
+        "mj_forward": data_forward_sampler(model, data),
+    }
+    if not isinstance(scene.algorithm, bd.DenseField):
+        dense = bd.Scene(scene.system, scene.effects, base=scene.base, algorithm=bd.DenseField())
+        samplers["dense"] = scene_field_sampler(dense, state)
+    timed = {name: stats for name, (_, stats) in interleaved(samplers, repeats).items()}
+    forward = timed["mj_forward"]["median"]
+    times = timed | {"ratio": timed["field"]["median"] / forward}
+    if "dense" in timed:
+        times["dense_ratio"] = timed["dense"]["median"] / forward
+        times["agreement"] = agreement(scene, dense, state)
+    return times
+
+
+def agreement(scene, dense, state):
+    r"""How closely the scene's field and the dense one agree at `state`: the largest
+    difference of their values, and of their VJPs at the cotangent $\sin$ of the dense
+    values, each over the dense one's largest entry: `{"field", "vjp"}`."""
+
+    def field(scene):
+        term = bd.SceneTerm(scene)
+        y = term.encode(0.0, state)
+
+        @jax.jit
+        def value_and_vjp(x):
+            out, vjp = jax.vjp(lambda x: jnp.concatenate(term.body_vf(0.0, (y[0], x), None)), x)
+            return out, vjp(jnp.sin(out))[0]
+
+        return value_and_vjp(y[1])
+
+    (ours, ours_vjp), (theirs, their_vjp) = field(scene), field(dense)
+    return {
+        "field": float(jnp.max(jnp.abs(ours - theirs)) / jnp.max(jnp.abs(theirs))),
+        "vjp": float(jnp.max(jnp.abs(ours_vjp - their_vjp)) / jnp.max(jnp.abs(their_vjp))),
+    }
+
+
 def mujoco_rollout(model, qpos, qvel, t1, dt):
     """MuJoCo's `(qpos, qvel)` after `t1` seconds of RK4 steps of `dt` from `(qpos,
     qvel)`, and the time it took."""
@@ -179,19 +222,8 @@ def survey(file, *, t1, seed, repeats):
     data.qpos[:], data.qvel[:] = start(model, seed)
     mujoco.mj_forward(model, data)
     entry["metric_error"], state = metric_error(model, data, scene, held)
-    timed = interleaved(
-        {
-            "field": scene_field_sampler(scene, state),
-            "mj_forward": data_forward_sampler(model, data),
-        },
-        repeats,
-    )
-    field, forward = (stats for _, stats in timed.values())
-    entry["field"] = {
-        "field": field,
-        "mj_forward": forward,
-        "ratio": field["median"] / forward["median"],
-    }
+    entry["algorithm"] = type(scene.algorithm).__name__
+    entry["field"] = field_times(scene, state, model, data, repeats)
     rk4 = mujoco_rollout(model, data.qpos, data.qvel, t1, DT)
     entry["mujoco_seconds"] = rk4[2]
     fine = mujoco_rollout(model, data.qpos, data.qvel, t1, FINE_DT)

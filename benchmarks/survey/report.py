@@ -15,16 +15,28 @@ def _reason(entry):
 
 def _row(entry):
     if entry["status"] != "imported":
-        return f"| {entry['name']} | {entry.get('nv', '')} | {entry['status']}: {_reason(entry)} | | | | | |"
+        return f"| {entry['name']} | {entry.get('nv', '')} | {entry['status']}: {_reason(entry)} | | | | | | |"
     field = entry["field"]
     off = "; ".join(entry["turned_off"][1:]) or "–"
     verdict = "yes" if entry["passed"] else "**no**"
     return (
         f"| {entry['name']} | {entry['nv']} | {entry['base']} | {entry['metric_error']:.1e} | "
         f"{entry['rollout_error']:.1e} / {entry['fine_rollout_error']:.1e} ({entry['rk4_error']:.1e}) {verdict} | "
-        f"{field['ratio']:.1f} ({field['field']['median'] * 1e6:.3g} µs) | "
+        f"{field['ratio']:.1f} ({field['field']['median'] * 1e6:.3g} µs) | {_dense(entry)} | "
         f"{entry['seconds'][1]:.2f} s, {entry['steps']} steps ({entry['seconds'][0]:.1f} s first) / "
         f"{entry['mujoco_seconds']:.2f} s | {off} |"
+    )
+
+
+def _dense(entry):
+    """The dense field's cell: its ratio to `mj_forward` and time, where it was timed."""
+    field = entry["field"]
+    if "dense" not in field:
+        return "(the default)" if entry.get("algorithm") == "DenseField" else "–"
+    agree = field["agreement"]
+    return (
+        f"{field['dense_ratio']:.1f} ({field['dense']['median'] * 1e6:.3g} µs); "
+        f"{agree['field']:.0e}, {agree['vjp']:.0e}"
     )
 
 
@@ -45,6 +57,17 @@ def summary(report):
             f" The field costs {statistics.median(ratios):.1f}× `mj_forward` (median), "
             f"{worst['field']['ratio']:.1f}× at worst ({worst['name']}, {worst['nv']} DoF)."
         )
+    dense = [m["field"]["dense_ratio"] for m in imported if "dense_ratio" in m["field"]]
+    if dense:
+        lines[0] += (
+            f" Where the default is the articulated-body field ({len(dense)} models), the "
+            f"dense field would cost {statistics.median(dense):.1f}× (median), "
+            f"{max(dense):.1f}× at worst. The two fields agree to "
+            f"{max(m['field']['agreement']['field'] for m in imported if 'dense' in m['field']):.0e} "
+            "and their VJPs to "
+            f"{max(m['field']['agreement']['vjp'] for m in imported if 'dense' in m['field']):.0e} "
+            "on every one of them (relative to the largest entry)."
+        )
     return lines
 
 
@@ -59,14 +82,17 @@ def markdown(report):
         f"home pose; MuJoCo with contacts, limits, actuators and friction loss off, RK4 at "
         f"dt = 1e-4, and what the import leaves out (last column) off too; bundledyn's "
         f"default solver ({report['solver']}) at rtol = atol = 1e-12. The field's time is a median over {report['repeats']} samples, in "
-        "alternation with `mj_forward` on the same state; the solve's the second call's.",
+        "alternation with `mj_forward` on the same state (and with the dense field, "
+        "`DenseField()`, where the scene's default is another); the solve's the second call's.",
         "",
         *summary(report),
         "",
         "| model | DoF | base | metric error | rollout error against RK4 at dt = 1e-4 / "
         "at 1.25e-5 (RK4's own error at 1e-4), within goal | field / mj_forward "
-        "(field µs) | bundledyn solve / MuJoCo RK4 | also off in MuJoCo |",
-        "|---|---|---|---|---|---|---|---|",
+        "(field µs), the scene's default | dense field / mj_forward (µs); its difference "
+        "from the default, in values and VJPs | bundledyn solve / "
+        "MuJoCo RK4 | also off in MuJoCo |",
+        "|---|---|---|---|---|---|---|---|---|",
         *(_row(entry) for entry in report["models"]),
         "",
     ]
