@@ -1,5 +1,6 @@
 """Effects (issue: dynamics): generalized forces checked against independent computations."""
 
+import functools
 import warnings
 
 import equinox as eqx
@@ -24,6 +25,7 @@ KIN = bd.Kinematics(
 )
 
 
+@functools.partial(jax.jit, static_argnums=(0, 1))  # one program, not one per primitive
 def _body_twist_fd(body, h=1e-4):
     """Body twist of one body along the motion, by 4th-order differences of its pose."""
 
@@ -42,9 +44,10 @@ def test_external_wrench_does_the_right_virtual_work(body):
         return jnp.array([0.3, -0.2, 0.5, 1.0, 2.0, -1.5]) * (1.0 + t) + 0.1 * xi
 
     F, Q = bd.ExternalWrench(fn, body=body).generalized_force(SYSTEM, KIN)
-    power = F @ KIN.xi + Q @ KIN.qdot
-    w = fn(KIN.t, KIN.g, KIN.q, KIN.xi, KIN.qdot)
-    np.testing.assert_allclose(power, w @ _body_twist_fd(body), rtol=1e-9)
+    F, Q, xi, qdot = (np.asarray(x) for x in (F, Q, KIN.xi, KIN.qdot))
+    power = F @ xi + Q @ qdot
+    w = np.asarray(jax.jit(fn)(KIN.t, KIN.g, KIN.q, KIN.xi, KIN.qdot))
+    np.testing.assert_allclose(power, w @ np.asarray(_body_twist_fd(body)), rtol=1e-9)
     if body == 0:  # the base is the section frame: no shape force
         np.testing.assert_allclose(Q, 0.0, atol=1e-14)
 
@@ -75,14 +78,18 @@ def test_gravity_does_the_work_of_its_potential():
         g = KIN.g @ lie.se3_exp(t * KIN.xi)
         return gravity.potential(SYSTEM, 0.0, g, KIN.q + t * KIN.qdot)
 
-    rate = jax.jvp(potential, (0.0,), (1.0,))[1]
+    @jax.jit  # the references in one program, not one per primitive
+    def references():
+        rate = jax.jvp(potential, (0.0,), (1.0,))[1]
+        # Independently, mγ·(world centre of mass) from the body poses.
+        poses = KIN.g @ SYSTEM.body_poses(KIN.q)
+        centres = poses[:, :3, 3] + jnp.einsum("nij,nj->ni", poses[:, :3, :3], SYSTEM.com)
+        gamma = 9.81 * gravity.direction
+        return rate, potential(0.0), -SYSTEM.mass @ (centres @ gamma)
+
+    rate, at_zero, expected = references()
     np.testing.assert_allclose(F @ KIN.xi + Q @ KIN.qdot, -rate, rtol=1e-12)
-    # Independently, mγ·(world centre of mass) from the body poses.
-    poses = KIN.g @ SYSTEM.body_poses(KIN.q)
-    centres = poses[:, :3, 3] + jnp.einsum("nij,nj->ni", poses[:, :3, :3], SYSTEM.com)
-    gamma = 9.81 * gravity.direction
-    expected = -SYSTEM.mass @ (centres @ gamma)
-    np.testing.assert_allclose(potential(0.0), expected, rtol=1e-12)
+    np.testing.assert_allclose(at_zero, expected, rtol=1e-12)
 
 
 def _shipped(name, **kwargs):
@@ -171,9 +178,10 @@ def test_written_out_forces_are_the_potentials_gradient_with_their_derivatives(n
     )
     # Each leaf to 1e-12 of its largest entry, or of the largest force where a leaf vanishes
     # identically (a wheel's spin moves no mass: its shape force is rounding either way).
-    forces = float(max(jnp.max(jnp.abs(f), initial=0.0) for f in by_autodiff[0]))
+    written_out, by_autodiff = jax.tree.map(np.asarray, (written_out, by_autodiff))
+    forces = float(max(np.max(np.abs(f), initial=0.0) for f in by_autodiff[0]))
     for x, y in zip(jax.tree.leaves(written_out), jax.tree.leaves(by_autodiff), strict=True):
-        scale = max(float(jnp.max(jnp.abs(y), initial=0.0)), forces)
+        scale = max(float(np.max(np.abs(y), initial=0.0)), forces)
         np.testing.assert_allclose(x, y, rtol=0.0, atol=1e-12 * scale)
 
 
