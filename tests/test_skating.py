@@ -71,8 +71,9 @@ def test_the_gradient_through_a_skating_solve_is_the_closed_forms():
     # d v(T) / d a through the solve (the sleigh's blade distance), against the closed
     # form's derivative
     distance = 0.4
-    ours = jax.grad(lambda a: _sleigh_solve(a).xi[-1, 3])(distance)
-    expected = jax.grad(lambda a: _sleigh_closed_form(a, SLEIGH_TS[-1])[0])(distance)
+    # Each compiled whole (one program, not a linearised and a transposed one and their ops).
+    ours = jax.jit(jax.grad(lambda a: _sleigh_solve(a).xi[-1, 3]))(distance)
+    expected = jax.jit(jax.grad(lambda a: _sleigh_closed_form(a, SLEIGH_TS[-1])[0]))(distance)
     np.testing.assert_allclose(ours, expected, rtol=1e-8)
 
 
