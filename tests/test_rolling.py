@@ -5,6 +5,7 @@ Euler angles, a `NonholonomicSystem` with its contact rows by autodiff."""
 import functools
 
 import diffrax
+import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -146,6 +147,7 @@ def _disc_scene(surface=None):
     return _rolling_scene(DISC_INERTIA, surface or bd.DiscContact(DISC_RADIUS), mass=DISC_MASS)
 
 
+@eqx.filter_jit  # one program, shared by the tests that start from it
 def _disc_state(scene, q, e):
     """The bundle's state of the Euler-angle state `(q, e)`."""
     qdot = bd.constrained_velocities(_disc_in_euler_angles().constraints, q, e, 0.0)
@@ -166,9 +168,11 @@ def test_the_rolling_disc_on_se3_moves_as_its_euler_angle_equations_move_it():
         stepsize_controller=diffrax.PIDController(rtol=1e-12, atol=1e-12),
     )  # fmt: skip
     q = reference.ys[0]
-    np.testing.assert_allclose(traj.g[:, :3, :3], jax.vmap(orientation)(q), atol=1e-9)
-    np.testing.assert_allclose(traj.g[:, :2, 3], q[:, :2], atol=1e-9)
-    assert float(jnp.max(jnp.abs(q[:, 3] - q0[3]))) > 0.1  # it tilts and wobbles
+    orientations = jax.jit(jax.vmap(orientation))(q)
+    g, q = np.asarray(traj.g), np.asarray(q)
+    np.testing.assert_allclose(g[:, :3, :3], orientations, atol=1e-9)
+    np.testing.assert_allclose(g[:, :2, 3], q[:, :2], atol=1e-9)
+    assert float(np.max(np.abs(q[:, 3] - float(q0[3])))) > 0.1  # it tilts and wobbles
     energy = np.asarray(traj.energy())
     np.testing.assert_allclose(energy, energy[0], rtol=1e-10)
 
@@ -283,7 +287,8 @@ def test_energy_is_conserved_on_every_surface(surface):
     energy = np.asarray(traj.energy())
     np.testing.assert_allclose(energy, energy[0], rtol=1e-10)
     # the surface touches the plane at every saved state, to rounding
-    np.testing.assert_allclose(jax.vmap(scene.mode.placed)(traj.g), traj.g, rtol=0, atol=1e-15)
+    placed = jax.jit(jax.vmap(scene.mode.placed))(traj.g)  # compiled, not op by op
+    np.testing.assert_allclose(placed, traj.g, rtol=0, atol=1e-15)
 
 
 def test_a_disc_lying_flat_has_a_finite_contact_point_and_derivative():
@@ -306,9 +311,11 @@ def test_the_gradient_through_a_rolling_solve_equals_central_differences():
         state = _disc_state(scene, q0, jnp.array([0.5, 0.0, spin]))
         return bd.simulate(scene, state, 0.5, rtol=1e-12, atol=1e-12).g[-1, 0, 3]
 
-    grad = jax.grad(final_x)(6.0)
+    # Compiled whole: the gradient one program, both differences' solves another.
+    grad = jax.jit(jax.grad(final_x))(6.0)
     h = 1e-4
-    differences = (final_x(6.0 + h) - final_x(6.0 - h)) / (2 * h)
+    value = jax.jit(final_x)
+    differences = (float(value(6.0 + h)) - float(value(6.0 - h))) / (2 * h)
     np.testing.assert_allclose(grad, differences, rtol=1e-6)
 
 
