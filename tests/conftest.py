@@ -138,11 +138,15 @@ LONGEST_FIRST = (
     "test_benchmark_nonholonomic.py",
     # The everyday part's, as measured on 2 cores (one worker each).
     "test_adjoint.py",
+    # Not measured with the list above: among the longest in a profile of the suite (its
+    # compiling, worker-seconds: test_effects 110, test_mujoco_import 65).
+    "test_effects.py",
     "test_modes.py",
     "test_tensorial.py",
     "test_identify_rigid.py",
     "test_invariance_dynamics.py",
     "test_field_vjp.py",
+    "test_mujoco_import.py",
     "test_rolling_wheel.py",
     "test_simulate.py",
     "test_stage_reverse.py",
