@@ -53,6 +53,21 @@ to_mujoco = jax.jit(_from_parts, static_argnames=("free_root",))
 body_poses = jax.jit(lambda system, q: system.body_poses(q))
 
 
+metric = jax.jit(lambda system, q: system.metric(q))
+
+
+@partial(jax.jit, static_argnames=("free_root",))
+def velocity_jacobian(system, qpos, qvel, qpos0, free_root=True):
+    """P, the linear map from MuJoCo's qvel to bundledyn's (ξ, q̇) at `qpos`: the Jacobian
+    of `state_from_mujoco`, compiled once per model (its states traced)."""
+
+    def velocity(qvel):
+        state = bundledyn.state_from_mujoco(system, qpos, qvel, qpos0=qpos0, free_root=free_root)
+        return jnp.concatenate([state.xi, state.qdot])
+
+    return jax.jacfwd(velocity)(qvel)
+
+
 @jax.jit
 def kinetic_energy(system, q, xi, qdot):
     z = jnp.concatenate([xi, qdot])
@@ -441,18 +456,13 @@ def test_metric_is_mujocos_mass_matrix(xml):
     rng = np.random.default_rng(7)
     for _ in range(3):
         qpos, qvel = random_state(model, rng)
-
-        def velocity(qvel, qpos=qpos):
-            state = bundledyn.state_from_mujoco(system, qpos, qvel, qpos0=model.qpos0)
-            return jnp.concatenate([state.xi, state.qdot])
-
-        P = jax.jacfwd(velocity)(jnp.asarray(qvel))
+        P = np.asarray(velocity_jacobian(system, qpos, qvel, model.qpos0))
         state = bundledyn.state_from_mujoco(system, qpos, qvel, qpos0=model.qpos0)
         data.qpos[:] = qpos
         mujoco.mj_forward(model, data)
         M = np.zeros((model.nv, model.nv))
         mujoco.mj_fullM(model, data, M)
-        ours = P.T @ system.metric(state.q) @ P
+        ours = P.T @ np.asarray(metric(system, state.q)) @ P
         assert np.linalg.norm(ours - M) <= 1e-12 * np.linalg.norm(M)
 
 
@@ -694,18 +704,14 @@ def test_a_held_root_moves_as_mujoco_moves_it(xml, held):
     start = bundledyn.state_from_mujoco(
         system, data.qpos, data.qvel, qpos0=model.qpos0, free_root=False
     )
-
-    def shape_velocity(qvel):
-        state = bundledyn.state_from_mujoco(
-            system, data.qpos, qvel, qpos0=model.qpos0, free_root=False
-        )
-        return state.qdot
-
-    P = jax.jacfwd(shape_velocity)(jnp.asarray(data.qvel))
+    # The shape velocity's rows of the Jacobian (the section's are the held base's).
+    P = np.asarray(
+        velocity_jacobian(system, data.qpos.copy(), data.qvel.copy(), model.qpos0, free_root=False)
+    )[6:]
     mujoco.mj_forward(model, data)
     M = np.zeros((model.nv, model.nv))
     mujoco.mj_fullM(model, data, M)
-    ours = P.T @ system.metric(start.q)[6:, 6:] @ P
+    ours = P.T @ np.asarray(metric(system, start.q))[6:, 6:] @ P
     assert np.linalg.norm(ours - M) <= 1e-12 * np.linalg.norm(M)
     for _ in range(10_000):
         mujoco.mj_step(model, data)
