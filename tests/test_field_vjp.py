@@ -94,17 +94,19 @@ def _reverse_field(scene, t, y):
 
 @functools.cache
 def _pullback(name, both):
-    """The hand-derived field's VJP on system `name`, compiled once for every state of the
-    system: with respect to the state and the scene's numbers, or to the state alone (the
-    scene held constant)."""
+    """The hand-derived field's value and VJP on system `name`, compiled once for every
+    state of the system: with respect to the state and the scene's numbers, or to the state
+    alone (the scene held constant). The central differences below read the value off it."""
     static = eqx.partition(_scene(name), eqx.is_inexact_array)[1]
 
     def run(params, y, cotangent):
         if both:
-            vjp = jax.vjp(lambda p, y: _reverse_field(eqx.combine(p, static), 0.3, y), params, y)[1]
+            out, vjp = jax.vjp(
+                lambda p, y: _reverse_field(eqx.combine(p, static), 0.3, y), params, y
+            )
         else:
-            vjp = jax.vjp(lambda y: _reverse_field(eqx.combine(params, static), 0.3, y), y)[1]
-        return vjp(cotangent)
+            out, vjp = jax.vjp(lambda y: _reverse_field(eqx.combine(params, static), 0.3, y), y)
+        return out, vjp(cotangent)
 
     return jax.jit(run)
 
@@ -151,7 +153,7 @@ def _pullbacks(name, kind):
     params = eqx.filter(scene, eqx.is_inexact_array)
     vjps = {}
     for both in (False, True) if (name, kind) in WITH_SCENE else (False,):
-        vjps["_reverse_field", both] = _pullback(name, both)(params, y, cotangent)
+        vjps["_reverse_field", both] = _pullback(name, both)(params, y, cotangent)[1]
         vjps["_reference_field", both] = _reference_pullback(name, both)(params, y, cotangent)
     return vjps, (params, y)
 
@@ -195,15 +197,17 @@ def test_reverse_pass_matches_central_differences(name):
     k = jax.random.split(jax.random.PRNGKey(6), 2)
     cotangent = _cotangent(scene.system)
     params = eqx.filter(scene, eqx.is_inexact_array)
-    ((g_bar, x_bar),) = _pullback(name, False)(params, y, cotangent)  # compiled above
+    pullback = _pullback(name, False)  # compiled above
+    _, ((g_bar, x_bar),) = pullback(params, y, cotangent)
     xi_dir, x_dir = jax.random.normal(k[0], (6,)), jax.random.normal(k[1], x.shape)
 
-    @jax.jit
-    def value(h):  # the pose moved along its tangent g·ξ̂, the rest along x_dir
+    def value(h):  # the pose moved along its tangent g·ξ̂, the rest along x_dir: the field's
+        # value from the same compiled program (its VJP not used here)
         moved = (g @ bd.lie.se3_exp(h * xi_dir), x + h * x_dir)
+        out, _ = pullback(params, moved, cotangent)
         return sum(
-            jnp.vdot(c, o)
-            for c, o in zip(cotangent, _reverse_field(scene, 0.3, moved), strict=True)
+            float(np.vdot(np.asarray(c), np.asarray(o)))
+            for c, o in zip(cotangent, out, strict=True)
         )
 
     h = 1e-5
@@ -251,7 +255,7 @@ def test_the_replayed_field_gives_its_values_back_with_the_fields_reverse_pass()
     out, both, state_only = replayed(params, y, values)
     for a, b in zip(jax.tree.leaves(out), jax.tree.leaves(values), strict=True):
         np.testing.assert_array_equal(np.asarray(a), np.asarray(b))
-    written_out = [_pullback(name, both)(params, y, cotangent) for both in (True, False)]
+    written_out = [_pullback(name, both)(params, y, cotangent)[1] for both in (True, False)]
     for a, b in zip(jax.tree.leaves((both, state_only)), jax.tree.leaves(written_out), strict=True):
         scale = float(jnp.max(jnp.abs(b), initial=0.0)) + 1.0
         np.testing.assert_allclose(np.asarray(a), np.asarray(b), rtol=0, atol=1e-12 * scale)
