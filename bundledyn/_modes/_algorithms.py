@@ -4,6 +4,8 @@ by the articulated-body recursions over a tree."""
 import abc
 
 import equinox as eqx
+import jax.numpy as jnp
+from jaxtyping import Array
 
 from .._dynamics import (
     bundle_geometry,
@@ -39,7 +41,7 @@ class AbstractFieldAlgorithm(eqx.Module):
         compute the field of `system`."""
 
     @abc.abstractmethod
-    def floating(self, scene, t, g, q, U, qdot):
+    def floating(self, scene, t, g, q, U, qdot) -> tuple[Array, Array, Array]:
         r"""$(\xi, \dot U, \ddot q)$ of a floating base and a free shape (2.6)–(2.7).
 
         **Arguments:**
@@ -54,7 +56,7 @@ class AbstractFieldAlgorithm(eqx.Module):
         """
 
     @abc.abstractmethod
-    def driven(self, scene, t, g, q, xi, xi_dot, qdot):
+    def driven(self, scene, t, g, q, xi, xi_dot, qdot) -> Array:
         r"""$\ddot q$ of the shape equation when the section frame's motion $(g, \xi,
         \dot\xi)$ is given (a held or moving base).
 
@@ -76,13 +78,13 @@ class DenseField(AbstractFieldAlgorithm):
     def check(self, system) -> None:
         pass
 
-    def floating(self, scene, t, g, q, U, qdot):
+    def floating(self, scene, t, g, q, U, qdot) -> tuple[Array, Array, Array]:
         geo = bundle_geometry(scene.system, q, U, qdot)
         xi = U - matmul(geo.A, qdot)
         F, Q = scene.forces(Kinematics(t, g, q, xi, qdot))
         return xi, locked_acceleration(geo, F), shape_acceleration(geo, F, Q)
 
-    def driven(self, scene, t, g, q, xi, xi_dot, qdot):
+    def driven(self, scene, t, g, q, xi, xi_dot, qdot) -> Array:
         _, Q = scene.forces(Kinematics(t, g, q, xi, qdot))
         return driven_shape_acceleration(scene.system, q, xi, xi_dot, qdot, Q)
 
@@ -105,7 +107,7 @@ def _field_and_forces(scene, kin: Kinematics):
     F, Q = total_force(others, scene.system, kin)
     if not fields:
         return None, F, Q
-    gamma = sum(e.g * e.direction for e in fields)
+    gamma = jnp.sum(jnp.stack([e.g * e.direction for e in fields]), axis=0)
     return matmul(kin.g[:3, :3].T, gamma.astype(kin.q.dtype)), F, Q
 
 
@@ -129,14 +131,14 @@ class ArticulatedBodyField(AbstractFieldAlgorithm):
                 "`DenseField()`, which computes the field of any system."
             )
 
-    def floating(self, scene, t, g, q, U, qdot):
+    def floating(self, scene, t, g, q, U, qdot) -> tuple[Array, Array, Array]:
         motion = tree_motion(scene.system, q, qdot)
         xi = body_twist(motion, U)
         gamma, F, Q = _field_and_forces(scene, Kinematics(t, g, q, xi, qdot))
         Udot, qddot = floating_accelerations(scene.system, motion, U, xi, F, Q, gamma)
         return xi, Udot, qddot
 
-    def driven(self, scene, t, g, q, xi, xi_dot, qdot):
+    def driven(self, scene, t, g, q, xi, xi_dot, qdot) -> Array:
         gamma, _, Q = _field_and_forces(scene, Kinematics(t, g, q, xi, qdot))
         motion = tree_motion(scene.system, q, qdot)
         return driven_accelerations(scene.system, motion, xi, xi_dot, Q, gamma)
