@@ -141,6 +141,8 @@ class Scene(eqx.Module):
           turns off are not added (which warns).
         - `gravity`: add the model's `<option gravity>` as a `Gravity` (none if it is zero,
           or if the model's `<flag gravity="disable">` turns it off, which warns).
+        - `algorithm`: as for `Scene` (by default the articulated-body recursions for any
+          tree they cover).
 
         **Returns:**
 
