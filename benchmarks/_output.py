@@ -58,28 +58,38 @@ def write(out, name, report, text):
     print(f"wrote {out / name}.{{json,md}}", flush=True)
 
 
-def destination(args, name, markdown):
-    """`(out, stem)` where a run writes; `None` after redrawing `stem.md` from `stem.json`
-    with `markdown` when `args.report_only` asks for only that."""
+def _no_figure(report, out):
+    pass
+
+
+def destination(args, name, markdown, draw=_no_figure):
+    """`(out, stem)` where a run writes; `None` after redrawing `stem.md` (and, by
+    `draw(report, out)`, its figures) from `stem.json` with `markdown` when
+    `args.report_only` asks for only that."""
     out = folder(args.out, args.quick, name, args.report_only)
     name = stem(name, args.quick)
     if not args.report_only:
         return out, name
-    (out / f"{name}.md").write_text(markdown(json.loads((out / f"{name}.json").read_text())))
+    report = json.loads((out / f"{name}.json").read_text())
+    draw(report, out)
+    (out / f"{name}.md").write_text(markdown(report))
     return None
 
 
-def run(args, name, markdown, measure, ready=lambda: True) -> int:
+def run(args, name, markdown, measure, ready=lambda: True, draw=_no_figure) -> int:
     """A benchmark's run from its parsed `args`: redraw `name.md` alone (`--report-only`),
-    or, once `ready()` says the peers are there, `measure()` the report, print its markdown
-    and write both files. The exit status: 0, or 1 when not `ready()`."""
-    where = destination(args, name, markdown)
+    or, once `ready()` says the peers are there, `measure()` the report, `draw(report,
+    out)` its figures (which may name them in the report), print its markdown and write
+    both files. The exit status: 0, or 1 when not `ready()`."""
+    where = destination(args, name, markdown, draw)
     if where is None:
         return 0
     if not ready():
         return 1
     out, stem_name = where
     report = measure()
+    out.mkdir(parents=True, exist_ok=True)
+    draw(report, out)
     text = markdown(report)
     print(text)
     write(out, stem_name, report, text)

@@ -407,13 +407,19 @@ def test_survey_and_devices_reports_redraw_from_their_json(tmp_path, name):
 @pytest.mark.slow  # two models imported, compiled and solved beside MuJoCo
 def test_the_survey_compares_each_model_with_mujoco(tmp_path):
     """The quick survey (bundledyn's two floating MJCF models, 0.1 s): both import, their
-    metric is MuJoCo's mass matrix to 1e-12 and their motion MuJoCo RK4's to 1e-9."""
+    metric is MuJoCo's mass matrix to 1e-12 and their motion MuJoCo RK4's to 1e-9; every
+    tolerance of the sweep reaches the fine reference to its own order, the gradient is
+    timed, and the diagram is drawn."""
     from benchmarks import survey
 
     assert survey.main(["--quick", "--out", str(tmp_path), "--repeats", "2"]) == 0
     report = json.loads((tmp_path / "survey_quick.json").read_text())
     assert [m["status"] for m in report["models"]] == ["imported", "imported"]
     assert all(m["passed"] and m["metric_error"] < 1e-12 for m in report["models"])
+    for m in report["models"]:
+        assert all(p["error"] < 100 * p["setting"] for p in m["solves"]["points"]), m["solves"]
+        assert m["gradient"]["ratio"] > 0 and m["gradient"]["compile"]["grad"] > 0
+    assert report["figure"] == "survey.png" and (tmp_path / "survey.png").stat().st_size > 0
     assert (
         "2 model files: 2 import, 2 of them equal MuJoCo"
         in (tmp_path / "survey_quick.md").read_text()

@@ -55,11 +55,14 @@ def _line(entry):
         f"{entry['nv']} DoF, metric {entry['metric_error']:.1e}, rollout "
         f"{entry['rollout_error']:.1e} / {entry['fine_rollout_error']:.1e} (RK4's own "
         f"{entry['rk4_error']:.1e}), field {entry['field']['ratio']:.1f}x mj_forward, "
-        f"{entry['seconds'][1]:.1f} s ({entry['steps']} steps) vs MuJoCo {entry['mujoco_seconds']:.1f} s"
+        f"{entry['seconds'][1]:.1f} s ({entry['steps']} steps) vs MuJoCo {entry['mujoco_seconds']:.1f} s, "
+        f"at RK4's error {entry['solves']['ratio']:.2f}x, grad/forward "
+        f"{entry['gradient'].get('ratio', float('nan')):.1f}"
     )
 
 
 def main(argv=None):
+    from benchmarks.survey.plot import draw
     from benchmarks.survey.report import markdown
 
     parser = _output.parser(DESCRIPTION, "bundledyn's two floating MJCF models, 0.1 s")
@@ -71,4 +74,5 @@ def main(argv=None):
         markdown,
         lambda: measure(args.quick, args.repeats or 3),
         ready=lambda: ready(args.quick),
+        draw=draw,
     )

@@ -1,7 +1,8 @@
 """One model of the survey: imported as a MuJoCo user would (`Scene.from_mjcf` with the
 model's passive forces and gravity), its metric against MuJoCo's mass matrix and its
 motion against MuJoCo's RK4 at dt = 1e-4, with what bundledyn leaves out turned off in
-MuJoCo (contacts, limits, actuators, and whatever the import's warning lists)."""
+MuJoCo (contacts, limits, actuators, and whatever the import's warning lists); its solve's
+time at RK4's error (`solves`) and its gradient's over the forward solve (`gradient`)."""
 
 import time
 import warnings
@@ -13,10 +14,11 @@ import numpy as np
 import bundledyn as bd
 from benchmarks._timing import interleaved
 from benchmarks.speed.field import data_forward_sampler, scene_field_sampler
+from benchmarks.survey.gradient import gradient_cost
+from benchmarks.survey.solves import TOLERANCES, timed_sweep, tolerance_run
 
 DT = 1e-4
 FINE_DT = DT / 8  # RK4's error 8^4 = 4096 times smaller: below the goal on every model
-TOLERANCE = 1e-12  # of the solve, rtol and atol
 METRIC_GOAL, ROLLOUT_GOAL = 1e-12, 1e-9  # the issue's: relative, and absolute in qpos/qvel
 _FREE, _BALL, _HINGE = 0, 1, 3
 
@@ -191,19 +193,6 @@ def difference(model, a, b):
     )
 
 
-def bundledyn_rollout(scene, state, t1):
-    """bundledyn's final state after `t1` seconds at `TOLERANCE`, its steps, and the times
-    of a first call (compiling) and a second."""
-    times = []
-    for _ in range(2):
-        began = time.perf_counter()
-        traj = bd.simulate(scene, state, t1, rtol=TOLERANCE, atol=TOLERANCE, max_steps=200_000)
-        jax.block_until_ready(traj.g)
-        times.append(time.perf_counter() - began)
-    end = bd.State(traj.g[-1], traj.q[-1], traj.xi[-1], traj.qdot[-1])
-    return end, int(traj.stats["num_steps"]), times
-
-
 def survey(file, *, t1, seed, repeats):
     """The survey's entry for one model file."""
     import mujoco
@@ -224,19 +213,40 @@ def survey(file, *, t1, seed, repeats):
     entry["metric_error"], state = metric_error(model, data, scene, held)
     entry["algorithm"] = type(scene.algorithm).__name__
     entry["field"] = field_times(scene, state, model, data, repeats)
-    rk4 = mujoco_rollout(model, data.qpos, data.qvel, t1, DT)
-    entry["mujoco_seconds"] = rk4[2]
-    fine = mujoco_rollout(model, data.qpos, data.qvel, t1, FINE_DT)
-    end, entry["steps"], entry["seconds"] = bundledyn_rollout(scene, state, t1)
-    ours = tuple(
-        np.asarray(x)
-        for x in bd.state_to_mujoco(scene.system, end, qpos0=model.qpos0, free_root=not held)
+    qpos, qvel = data.qpos.copy(), data.qvel.copy()
+    rk4 = mujoco_rollout(model, qpos, qvel, t1, DT)
+    fine = mujoco_rollout(model, qpos, qvel, t1, FINE_DT)
+    entry["rk4_error"] = difference(model, fine, rk4)
+
+    def to_mujoco(end):
+        return tuple(
+            np.asarray(x)
+            for x in bd.state_to_mujoco(scene.system, end, qpos0=model.qpos0, free_root=not held)
+        )
+
+    run = tolerance_run(scene, t1)
+    solves = timed_sweep(
+        run,
+        state,
+        to_mujoco,
+        lambda ours: difference(model, fine, ours),
+        lambda: mujoco_rollout(model, qpos, qvel, t1, DT)[2],
+        entry["rk4_error"],
+        repeats,
     )
+    entry["solves"], entry["mujoco_seconds"] = solves, solves["mujoco"]["time"]["median"]
+    end, steps = run(state, TOLERANCES[-1])
+    entry["steps"] = int(steps)
+    entry["seconds"] = [solves["first_call"], solves["points"][-1]["time"]["median"]]
+    ours = to_mujoco(end)
     entry["rollout_error"] = difference(model, rk4, ours)
     entry["fine_rollout_error"] = difference(model, fine, ours)
-    entry["rk4_error"] = difference(model, fine, rk4)
     # Where RK4 at dt = 1e-4 is itself further than the goal from the motion, the goal is
     # judged against RK4 at an eighth of the step (4096 times more accurate).
     agreement = min(entry["rollout_error"], entry["fine_rollout_error"])
     entry["passed"] = entry["metric_error"] <= METRIC_GOAL and agreement <= ROLLOUT_GOAL
+    try:
+        entry["gradient"] = gradient_cost(scene, state, t1, repeats)
+    except Exception as error:  # noqa: BLE001 - a gradient that fails is a finding, recorded
+        entry["gradient"] = {"error": f"{type(error).__name__}: {str(error).strip()[:200]}"}
     return entry

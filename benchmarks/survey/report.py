@@ -1,10 +1,13 @@
-"""The survey's markdown (and its diagram: the field's cost over `mj_forward`'s against
-the number of degrees of freedom, log–log) from a run's JSON."""
+"""The survey's markdown from a run's JSON (its diagram is `plot.draw`'s)."""
 
+import math
 import statistics
 
 from benchmarks._report import provenance_lines, versions
+from benchmarks.survey.gradient import TOLERANCE as GRADIENT_TOLERANCE
 from benchmarks.survey.measure import METRIC_GOAL, ROLLOUT_GOAL
+from benchmarks.survey.plot import SERIES, ratios
+from benchmarks.survey.solves import ROUNDING, TOLERANCES
 
 
 def _reason(entry):
@@ -15,7 +18,7 @@ def _reason(entry):
 
 def _row(entry):
     if entry["status"] != "imported":
-        return f"| {entry['name']} | {entry.get('nv', '')} | {entry['status']}: {_reason(entry)} | | | | | | |"
+        return f"| {entry['name']} | {entry.get('nv', '')} | {entry['status']}: {_reason(entry)} | | | | | | | | |"
     field = entry["field"]
     off = "; ".join(entry["turned_off"][1:]) or "–"
     verdict = "yes" if entry["passed"] else "**no**"
@@ -23,9 +26,25 @@ def _row(entry):
         f"| {entry['name']} | {entry['nv']} | {entry['base']} | {entry['metric_error']:.1e} | "
         f"{entry['rollout_error']:.1e} / {entry['fine_rollout_error']:.1e} ({entry['rk4_error']:.1e}) {verdict} | "
         f"{field['ratio']:.1f} ({field['field']['median'] * 1e6:.3g} µs) | {_dense(entry)} | "
-        f"{entry['seconds'][1]:.2f} s, {entry['steps']} steps ({entry['seconds'][0]:.1f} s first) / "
-        f"{entry['mujoco_seconds']:.2f} s | {off} |"
+        f"{entry['seconds'][1]:.2f} s, {entry['steps']} steps / {entry['mujoco_seconds']:.2f} s "
+        f"({entry['seconds'][0]:.1f} s first call) | {_equal_error(entry)} | {_gradient(entry)} | "
+        f"{off} |"
     )
+
+
+def _equal_error(entry):
+    """The solve's cell: its time to RK4's error over RK4's, and that error."""
+    solves = entry["solves"]
+    ratio = "not reached" if math.isinf(solves["ratio"]) else f"{solves['ratio']:.2f}"
+    return f"{ratio} (at {solves['mujoco']['error']:.0e})"
+
+
+def _gradient(entry):
+    """The gradient's cell: its time over the forward solve's, and its compile seconds."""
+    gradient = entry["gradient"]
+    if "error" in gradient:
+        return f"failed: {gradient['error'][:80]}".replace("|", "/")
+    return f"{gradient['ratio']:.1f} ({gradient['compile']['grad']:.0f} s compile)"
 
 
 def _dense(entry):
@@ -57,6 +76,7 @@ def summary(report):
             f" The field costs {statistics.median(ratios):.1f}× `mj_forward` (median), "
             f"{worst['field']['ratio']:.1f}× at worst ({worst['name']}, {worst['nv']} DoF)."
         )
+    lines += [_series_line(imported, key, what, limit) for key, what, limit in SERIES[1:]]
     dense = [m["field"]["dense_ratio"] for m in imported if "dense_ratio" in m["field"]]
     if dense:
         lines[0] += (
@@ -71,6 +91,21 @@ def summary(report):
     return lines
 
 
+def _series_line(imported, key, what, limit):
+    """A ratio's median and worst over the models that have it, against its limit."""
+    values = sorted((ratios(m)[key], m["name"], m["nv"]) for m in imported if key in ratios(m))
+    if not values:
+        return f"{what}: not measured."
+    worst = values[-1]
+    within = sum(v <= limit for v, _, _ in values)
+    missing = len(imported) - len(values)
+    return (
+        f"{what}: {statistics.median(v for v, _, _ in values):.2f}× (median), {worst[0]:.2f}× "
+        f"at worst ({worst[1]}, {worst[2]} DoF); {within} of {len(values)} models within "
+        f"{limit:g}×" + (f", {missing} not reached or failed." if missing else ".")
+    )
+
+
 def markdown(report):
     env = report["environment"]
     lines = [
@@ -83,16 +118,29 @@ def markdown(report):
         f"dt = 1e-4, and what the import leaves out (last column) off too; bundledyn's "
         f"default solver ({report['solver']}) at rtol = atol = 1e-12. The field's time is a median over {report['repeats']} samples, in "
         "alternation with `mj_forward` on the same state (and with the dense field, "
-        "`DenseField()`, where the scene's default is another); the solve's the second call's.",
+        "`DenseField()`, where the scene's default is another). The solve at equal error: "
+        f"bundledyn at rtol = atol = {', '.join(f'{t:.0e}' for t in TOLERANCES)} and MuJoCo "
+        "RK4 at dt = 1e-4, timed in alternation (medians), each judged against RK4 at "
+        f"1.25e-5; bundledyn's time to RK4's error (or to {ROUNDING:g} where RK4's is smaller: "
+        "both are then exact to rounding) is interpolated log–log. The gradient: "
+        "`jax.grad` of the final shape's squared norm in the initial shape velocity, "
+        f"default solver and adjoint at rtol = atol = {GRADIENT_TOLERANCE:g}, over the "
+        "same loss's forward solve, in alternation.",
         "",
         *summary(report),
         "",
+        *(
+            [f"![ratios against degrees of freedom]({report['figure']})", ""]
+            if report.get("figure")
+            else []
+        ),
         "| model | DoF | base | metric error | rollout error against RK4 at dt = 1e-4 / "
         "at 1.25e-5 (RK4's own error at 1e-4), within goal | field / mj_forward "
         "(field µs), the scene's default | dense field / mj_forward (µs); its difference "
-        "from the default, in values and VJPs | bundledyn solve / "
-        "MuJoCo RK4 | also off in MuJoCo |",
-        "|---|---|---|---|---|---|---|---|---|",
+        "from the default, in values and VJPs | bundledyn solve at 1e-12 / "
+        "MuJoCo RK4 | time to RK4's error / RK4's (that error) | jax.grad / forward "
+        "(its compile) | also off in MuJoCo |",
+        "|---|---|---|---|---|---|---|---|---|---|---|",
         *(_row(entry) for entry in report["models"]),
         "",
     ]
