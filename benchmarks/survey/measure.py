@@ -15,7 +15,7 @@ import bundledyn as bd
 from benchmarks._timing import interleaved
 from benchmarks.speed.field import data_forward_sampler, scene_field_sampler
 from benchmarks.survey.gradient import gradient_cost
-from benchmarks.survey.solves import TOLERANCES, timed_sweep, tolerance_run
+from benchmarks.survey.solves import SURVEYED, TOLERANCES, timed_sweep, tolerance_run
 
 DT = 1e-4
 FINE_DT = DT / 8  # RK4's error 8^4 = 4096 times smaller: below the goal on every model
@@ -235,9 +235,10 @@ def survey(file, *, t1, seed, repeats):
         repeats,
     )
     entry["solves"], entry["mujoco_seconds"] = solves, solves["mujoco"]["time"]["median"]
-    end, steps = run(state, TOLERANCES[-1])
+    end, steps = run(state, SURVEYED)
     entry["steps"] = int(steps)
-    entry["seconds"] = [solves["first_call"], solves["points"][-1]["time"]["median"]]
+    surveyed = solves["points"][TOLERANCES.index(SURVEYED)]
+    entry["seconds"] = [solves["first_call"], surveyed["time"]["median"]]
     ours = to_mujoco(end)
     entry["rollout_error"] = difference(model, rk4, ours)
     entry["fine_rollout_error"] = difference(model, fine, ours)
