@@ -127,8 +127,7 @@ def markdown(report):
         f"default solver and adjoint at rtol = atol = {GRADIENT_TOLERANCE:g}, over the "
         "same loss's forward solve, in alternation.",
         "",
-        *summary(report),
-        "",
+        *(part for line in summary(report) for part in (line, "")),
         *(
             [f"![ratios against degrees of freedom]({report['figure']})", ""]
             if report.get("figure")
