@@ -210,6 +210,7 @@ _TAKES = {
     "2-d indices": ([[1, 2, 3], [0, 1, 2]], 0),
     "negative axis": ([2, 0], -1),
     "empty": (np.zeros(0, int), 0),
+    "more runs than slices": (np.random.default_rng(3).permutation(np.arange(40) % 5), 0),
 }
 
 
@@ -247,6 +248,25 @@ def test_small_einsum_is_fused_elementwise_work():
     big = jnp.ones((20, 19))
     text = jax.jit(lambda p: einsum("al,aij->lij", p, jnp.ones((20, 6, 6)))).lower(big)
     assert "dot_general" in text.as_text()
+
+
+def test_products_per_body_fuse_and_sums_over_bodies_do_not():
+    """A 6×6 matrix by a vector for each of 87 bodies is fused work (a batched `dot` of
+    them is a kernel dearer than the work); a sum over the bodies stays a `dot`."""
+    M, v = jnp.ones((87, 6, 6)), jnp.ones((87, 6))
+    per_body = jax.jit(lambda M, v: einsum("kij,kj->ki", M, v)).lower(M, v).compile()
+    assert " dot(" not in per_body.as_text()
+    over_bodies = jax.jit(lambda M, v: einsum("kij,kj->i", M, v)).lower(M, v)
+    assert "dot_general" in over_bodies.as_text()
+
+
+def test_take_gathers_past_a_few_runs_and_slices_below():
+    """Many runs (a bushy tree's parents) are one gather, whose transpose does not grow
+    with the runs; a few runs are slices, which transpose to pads."""
+    x = jnp.ones((40, 3))
+    many = np.random.default_rng(3).permutation(40)
+    assert "gather" in str(jax.make_jaxpr(lambda x: take(x, many))(x))
+    assert "gather" not in str(jax.make_jaxpr(lambda x: take(x, np.r_[5:40, 0:5]))(x))
 
 
 def test_matmul_follows_jnp_matmul_and_its_derivatives():

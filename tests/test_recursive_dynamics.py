@@ -330,6 +330,33 @@ def test_gradient_equals_the_dense_one():
     assert largest_error(ours, dense) < 1e-10
 
 
+def test_the_passes_reverse_mode_scatters_nothing_per_level():
+    """Reverse mode through the passes has as many scatter-adds (a loop of kernels each on
+    XLA's CPU) for a tree of 10 levels as for one of 3, each level two bodies hanging from
+    the same parent: each level's parents and children are taken through a 0/1 matrix,
+    and the levels split apart in one `split`."""
+    from systems import box_body
+
+    def scatters(levels):
+        links = [
+            bd.Link(box_body(1.0, (0.3, 0.1, 0.1)), bd.Revolute((0.0, 0.0, 1.0)), parent, np.eye(4))
+            for level in range(levels)
+            for parent in [max(2 * level - 1, 0)] * 2
+        ]
+        system = bd.Multibody(box_body(2.0, (0.5, 0.2, 0.1)), links)
+        d = system.shape_dim
+        motion = tree_motion(system, jnp.full(d, 0.2), jnp.full(d, 0.3))
+        xi, xi_dot = jnp.full(6, 0.1), jnp.full(6, 0.2)
+
+        def passes(motion):
+            return driven_accelerations(system, motion, xi, xi_dot, jnp.zeros(d))
+
+        vjp = lambda m: jax.vjp(passes, m)[1](jnp.ones(d))  # noqa: E731
+        return str(jax.make_jaxpr(vjp)(motion)).count("scatter")
+
+    assert scatters(10) == scatters(3)
+
+
 @pytest.mark.parametrize("turn", [0.0, np.pi])
 def test_finite_where_a_ball_joint_is_home_or_half_a_turn_away(turn):
     r"""At $\varphi = 0$ (the exponential coordinates' removable singularity, where
