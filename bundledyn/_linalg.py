@@ -24,14 +24,11 @@ import jax.scipy.linalg as jsl
 import numpy as np
 from jaxtyping import Array, Float
 
-# A 6×6 by 6×6 product: up to it, fused broadcast products beat `dot` kernels; with a larger
-# limit the products over bodies fuse too, and vmapped rollouts get slower.
+# A 6×6 by 6×6 product, per member of a batch (the indices every operand and the output
+# share: one product per body): up to it, fused broadcast products beat `dot` kernels, and
+# their VJPs more so (a cheetah's field VJP 37 -> 16 us); with a larger limit the sums over
+# bodies fuse too, and vmapped rollouts get slower.
 _FUSED_PRODUCT_LIMIT = 216
-# A 6×6 matrix by a vector, per member of a batch (the indices that every operand and the
-# output share): such products over many bodies fuse too, since a batched `dot` of them
-# costs 12-22 us on 87 bodies, and its VJP two more. Batched 4×4 by 4×4 products fused made
-# vmapped rollouts of a 5-body chain 20 % slower.
-_FUSED_MEMBER_LIMIT = 36
 # Runs of consecutive indices past which `take` gathers (measured on 85 rows of 16: its
 # slices' VJP costs as the gather's at 8 runs and 3x at 32).
 _MOST_RUNS = 8
@@ -41,8 +38,9 @@ def einsum(subscripts: str, *operands) -> Array:
     """`jnp.einsum` for small operands, as one broadcast product and a sum that XLA fuses.
 
     Contractions whose broadcast product has more than 216 entries (a 6×6 by 6×6 product)
-    and more than 36 per member of a batch (a 6×6 matrix by a vector, for each of many
-    bodies), and subscripts with a repeated index in one operand, go to `jnp.einsum` (at
+    per member of a batch (the indices that every operand and the output share, as one
+    product per body), and subscripts with a repeated index in one operand, go to
+    `jnp.einsum` (at
     `Precision.HIGHEST`). The small ones are exact products summed in index order, at
     full precision on every backend.
 
@@ -86,8 +84,7 @@ def _plan(subscripts, operands):
     repeated = any(len(set(spec)) < len(spec) for spec in letters)
     batch = [c for c in output if all(c in spec for spec in letters)]
     each = math.prod(n for c, n in sizes.items() if c not in batch)
-    small = math.prod(sizes.values()) <= _FUSED_PRODUCT_LIMIT or each <= _FUSED_MEMBER_LIMIT
-    if repeated or not small:
+    if repeated or each > _FUSED_PRODUCT_LIMIT:
         return None
     return tuple(letters), order, len(output)
 
@@ -144,6 +141,27 @@ def dot(a, b) -> Array:
     fused elementwise work of `matmul`.
     """
     return jnp.matmul(a, b, precision=lax.Precision.HIGHEST)
+
+
+def materialized(x) -> Array:
+    r"""`x`, computed once into a buffer of its own rather than inlined into its consumers.
+
+    XLA fuses a chain of elementwise work into each consumer, so a recursion of fused
+    products (a tree's levels, the pointer jumps of its poses) would recompute every step
+    before it in each of its kernels (an 80-body chain's pass from the root: 275k HLO
+    instructions and 40 s to compile, 21k and 5 s with this). A `lax.optimization_barrier`
+    there left the recomputation in place; XLA's CPU fusion puts no `reduce` inside a
+    consumer, and a sum with zero is one.
+
+    **Arguments:**
+
+    - `x`: an array.
+
+    **Returns:**
+
+    `x`, equal to it.
+    """
+    return jnp.sum(jnp.stack([x, jnp.zeros_like(x)], axis=-1), axis=-1)
 
 
 def take(x, indices, axis: int = 0) -> Array:

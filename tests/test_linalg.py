@@ -251,10 +251,10 @@ def test_small_einsum_is_fused_elementwise_work():
 
 
 def test_products_per_body_fuse_and_sums_over_bodies_do_not():
-    """A 6×6 matrix by a vector for each of 87 bodies is fused work (a batched `dot` of
-    them is a kernel dearer than the work); a sum over the bodies stays a `dot`."""
+    """A 6×6 by 6×6 product for each of 87 bodies is fused work (a batched `dot` of them
+    is a kernel dearer than the work); a sum over the bodies stays a `dot`."""
     M, v = jnp.ones((87, 6, 6)), jnp.ones((87, 6))
-    per_body = jax.jit(lambda M, v: einsum("kij,kj->ki", M, v)).lower(M, v).compile()
+    per_body = jax.jit(lambda M: matmul(M, M)).lower(M).compile()
     assert " dot(" not in per_body.as_text()
     over_bodies = jax.jit(lambda M, v: einsum("kij,kj->i", M, v)).lower(M, v)
     assert "dot_general" in over_bodies.as_text()

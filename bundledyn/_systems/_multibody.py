@@ -10,7 +10,7 @@ from jaxtyping import Array, Float
 
 from .. import lie
 from .._lie._so3 import so3_dexp_derivative
-from .._linalg import einsum, matmul, take
+from .._linalg import einsum, materialized, matmul, take
 from .._validation import check_shape, concrete
 from ._base import AbstractInertialSystem, autodiff_metric_jet
 from ._link import Link
@@ -248,7 +248,7 @@ class Multibody(AbstractMultibody):
         anc = np.array([a if a >= 0 else sentinel for a in t.node_parent] + [sentinel])
         eye = jnp.eye(4, dtype=T.dtype)[None]
         while np.any(anc[:n_nodes] != sentinel):
-            T = matmul(take(jnp.concatenate([T, eye]), anc[:n_nodes]), T)
+            T = materialized(matmul(take(jnp.concatenate([T, eye]), anc[:n_nodes]), T))
             anc = anc[anc]
         return T, screw_nodes, ball_nodes, Jr
 

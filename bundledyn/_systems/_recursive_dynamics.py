@@ -37,7 +37,7 @@ from jaxtyping import Array, Float
 
 from .. import lie
 from .._lie._so3 import so3_dexp_derivative
-from .._linalg import einsum, matmul, spd_inverse_6x6, spd_solve
+from .._linalg import einsum, materialized, matmul, spd_inverse_6x6, spd_solve
 from ._multibody import Multibody
 from ._tree import Tree
 
@@ -435,22 +435,10 @@ def _from_the_root(levels: _Levels, joints, drift, A0):
             qddot = einsum("kvw,kw->kv", joint.D_inv, joint.u - einsum("kwi,ki->kw", joint.U, A))
             A = A + einsum("kwi,kw->ki", joint.S, qddot)
             solved.append(qddot.reshape(-1))
-        A_above = _materialized(A)
+        A_above = materialized(A)
     if not solved:  # welds only
         return jnp.zeros(0, A0.dtype)
     return _gather(jnp.concatenate(solved), levels.solved)
-
-
-def _materialized(x):
-    r"""`x`, computed once into a buffer of its own rather than inlined into its consumers.
-
-    XLA fuses a chain of elementwise work into each consumer, so the pass from the root's
-    kernel at every level would recompute the accelerations of all the levels above it (an
-    80-body chain: 275k HLO instructions and 40 s to compile, 21k and 5 s with this). A
-    `lax.optimization_barrier` there left the recomputation in place; XLA's CPU fusion puts
-    no `reduce` inside a consumer, and a sum with zero is one.
-    """
-    return jnp.sum(jnp.stack([x, jnp.zeros_like(x)], axis=-1), axis=-1)
 
 
 def _field_twist(gravity, dtype):
