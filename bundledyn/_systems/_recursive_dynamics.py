@@ -37,7 +37,7 @@ from jaxtyping import Array, Float
 
 from .. import lie
 from .._lie._so3 import so3_dexp_derivative
-from .._linalg import einsum, materialized, matmul, spd_inverse_6x6, spd_solve
+from .._linalg import einsum, materialized, matmul, spd_inverse_6x6, spd_solve, take
 from ._multibody import Multibody
 from ._tree import Tree
 
@@ -186,22 +186,12 @@ class TreeMotion(NamedTuple):
     columns: Float[Array, "6 d"]
 
 
-def _gather(x, indices):
-    r"""`x` at the constant row `indices` (any shape) as one gather.
-
-    `_linalg.take`'s slices of consecutive runs cost a kernel per run, and the tree's
-    orders (parents, levels, children) break into many short runs: measured on 87 rows
-    in random order, 6.9 us a call against 0.13 us for the gather.
-    """
-    return x.at[np.asarray(indices)].get(mode="promise_in_bounds")
-
-
 def _through(matrix, x):
     r"""$Ex$: the rows of `x` `(n, k)` combined by a constant 0/1 matrix $E$ `(m, n)`.
 
     A contraction, where a gather would do: reverse mode transposes it to another, and a
-    gather to a `scatter-add`, which XLA's CPU runs as a loop of kernels over the indices
-    (on the dog's 29 levels, 15-40 us a level against 1 us).
+    gather to a `scatter-add`, which XLA's CPU runs as a loop of kernels over the indices,
+    one such loop per level of the tree.
     """
     return einsum("mn,nk->mk", matrix.astype(x.dtype), x)
 
@@ -213,14 +203,14 @@ def _path_sums(x, parents):
     above = np.append(parents, m)
     zero = jnp.zeros((1, 6), x.dtype)
     while np.any(above[:m] != m):
-        x = x + _gather(jnp.concatenate([x, zero]), above[:m])
+        x = x + take(jnp.concatenate([x, zero]), above[:m])
         above = above[above]
     return x
 
 
 def _per_row(x, table):
     r"""Rows of `x` summed by `table` `(r, c)` of row indices, `x.shape[0]` for none."""
-    return jnp.sum(_gather(jnp.concatenate([x, jnp.zeros_like(x[:1])]), table), axis=1)
+    return jnp.sum(take(jnp.concatenate([x, jnp.zeros_like(x[:1])]), table), axis=1)
 
 
 def _ball_drift(system: Multibody, q, qdot, T, ball_nodes):
@@ -229,7 +219,7 @@ def _ball_drift(system: Multibody, q, qdot, T, ball_nodes):
     own coordinates; the rotation $R\,h$ about the joint's centre $c$, $h = \sum_l
     \dot\varphi_l(\partial_l J_r)\dot\varphi$, `(k, 6)`."""
     cols = np.array(system.tables.q_start)[ball_nodes][:, None] + np.arange(3)
-    phi, phidot = _gather(q, cols), _gather(qdot, cols)
+    phi, phidot = take(q, cols), take(qdot, cols)
     h = einsum("kl,klij,kj->ki", phidot, so3_dexp_derivative(phi), phidot)
     R, centre = system._ball_frames(T, ball_nodes)
     w = einsum("kij,kj->ki", R, h)
@@ -253,25 +243,23 @@ def tree_motion(system, q: Float[Array, " d"], qdot: Float[Array, " d"]) -> Tree
     levels = _levels(t, tree.parents)
     T, screw_nodes, ball_nodes, Jr = tree._node_poses(q)
     Z = tree._shape_columns(T, screw_nodes, ball_nodes, Jr)
-    inertias = tree._section_inertias(_gather(T, t.body_last))
+    inertias = tree._section_inertias(take(T, t.body_last))
     node_columns = _padded(
         [[t.q_start[k] + i for i in range(_WIDTH[kind])] for k, kind in enumerate(t.kinds)],
         t.shape_dim,
     )
     own = _per_row((Z * qdot[None, :]).T, node_columns)  # each node's own twist x_k
     relative = _path_sums(own, levels.node_parents)
-    parent_twists = _gather(
-        jnp.concatenate([relative, jnp.zeros_like(own[:1])]), levels.node_parents
-    )
+    parent_twists = take(jnp.concatenate([relative, jnp.zeros_like(own[:1])]), levels.node_parents)
     drift = lie.bracket(parent_twists, own)
     if len(ball_nodes):
         ball_rows = np.full(len(t.kinds), len(ball_nodes))
         ball_rows[ball_nodes] = np.arange(len(ball_nodes))
         balls = _ball_drift(tree, q, qdot, T, ball_nodes)
-        drift = drift + _gather(jnp.concatenate([balls, jnp.zeros_like(balls[:1])]), ball_rows)
+        drift = drift + take(jnp.concatenate([balls, jnp.zeros_like(balls[:1])]), ball_rows)
     return TreeMotion(
         inertias,
-        _gather(relative, t.body_last),
+        take(relative, t.body_last),
         _per_row(own, levels.body_nodes),
         _per_row(drift, levels.body_nodes),
         Z,
@@ -341,12 +329,12 @@ def _level_order(system: Multibody, motion: TreeMotion, xi, shape_force, levels:
     columns = jnp.concatenate([motion.columns.T, jnp.zeros((1, 6), dtype)])
     rotor = jnp.concatenate([system.armature.astype(dtype), jnp.ones(1, dtype)])
     bodies = _Bodies(
-        _gather(motion.inertias, levels.order),
-        _gather(bias, levels.order),
-        _gather(drift, levels.order),
-        _gather(columns, levels.columns),
-        _gather(jnp.concatenate([shape_force, jnp.zeros(1, dtype)]), levels.columns),
-        _gather(rotor, levels.columns),
+        take(motion.inertias, levels.order),
+        take(bias, levels.order),
+        take(drift, levels.order),
+        take(columns, levels.columns),
+        take(jnp.concatenate([shape_force, jnp.zeros(1, dtype)]), levels.columns),
+        take(rotor, levels.columns),
     )
     return motion.inertias[0], bias[0], bodies
 
@@ -438,7 +426,7 @@ def _from_the_root(levels: _Levels, joints, drift, A0):
         A_above = materialized(A)
     if not solved:  # welds only
         return jnp.zeros(0, A0.dtype)
-    return _gather(jnp.concatenate(solved), levels.solved)
+    return take(jnp.concatenate(solved), levels.solved)
 
 
 def _field_twist(gravity, dtype):
