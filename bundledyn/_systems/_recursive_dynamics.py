@@ -373,15 +373,15 @@ def _from_the_leaves(levels: _Levels, base_inertia, base_bias, bodies: _Bodies):
     """
     joints = []
     below = None  # per body of this level, its children's (I^a, p^a) summed
-    per_level = _Bodies(*(_by_levels(x, levels) for x in bodies))
+    inertias, biases, drifts, columns, forces, rotors = (_by_levels(x, levels) for x in bodies)
     for L in reversed(range(len(levels.widths))):
         w = levels.widths[L]
-        IA, pA = per_level.inertias[L], per_level.bias[L]
+        IA, pA = inertias[L], biases[L]
         if below is not None:
             IA, pA = IA + below[0], pA + below[1]
-        drift = per_level.drift[L]
+        drift = drifts[L]
         if w:
-            S, Q, rotor = per_level.S[L][:, :w], per_level.Q[L][:, :w], per_level.rotor[L][:, :w]
+            S, Q, rotor = columns[L][:, :w], forces[L][:, :w], rotors[L][:, :w]
             Ia, pa, joint = _through_joints(IA, pA, drift, S, Q, rotor)
         else:
             Ia, pa, joint = IA, pA + einsum("kij,kj->ki", IA, drift), None
