@@ -18,6 +18,10 @@ os.environ.setdefault(
         os.path.dirname(os.path.dirname(os.path.abspath(__file__))), ".pytest_cache", "jax"
     ),
 )
+# Every program, not only those that took a second to compile (JAX's default): unoptimised
+# (below), 7,300 of the everyday suite's 7,400 compiles take less, and a program read back
+# costs a tenth of compiling it. Measured on 2 cores, cold cache: 647 s -> 591 s; 100 MB.
+os.environ.setdefault("JAX_PERSISTENT_CACHE_MIN_COMPILE_TIME_SECS", "0")
 
 
 def _share_the_cores_among_workers():
