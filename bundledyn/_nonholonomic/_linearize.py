@@ -90,47 +90,56 @@ def _boundary(growth_rate, halvings, lower, upper, args):
     return _bisection(growth_rate, halvings, lower, upper, args)
 
 
-# The bisection and the two slopes are compiled each on its own, once per growth rate (a
+# The bisection and the slope are compiled each on its own, once per growth rate (a
 # static argument): called outside `jax.jit`, a second bracket or the derivative's rule
-# reuses them, where a program holding all three compiles in more than their sum. Inside
-# `jax.jit` they are inlined.
+# reuses them, where a program holding both compiles in more than their sum. Inside
+# `jax.jit` they are inlined. The bisection's loop also evaluates the two ends (its first two
+# passes), so the growth rate is traced and compiled once, not three times.
 @eqx.filter_jit
 def _bisection(growth_rate, halvings, lower, upper, args):
-    at_lower, at_upper = growth_rate(lower, args), growth_rate(upper, args)
-    rising = at_upper > at_lower
-    lower = eqx.error_if(
-        lower,
+    def step(i, interval):
+        low, high, at_lower, at_upper = interval
+        middle = 0.5 * (low + high)
+        point = jnp.where(i == 0, low, jnp.where(i == 1, high, middle))
+        value = jnp.asarray(growth_rate(point, args), dtype=low.dtype)
+        at_lower = jnp.where(i == 0, value, at_lower)
+        at_upper = jnp.where(i == 1, value, at_upper)
+        past = (value > 0) == (at_upper > at_lower)
+        halving = i >= 2
+        return (
+            jnp.where(halving & ~past, middle, low),
+            jnp.where(halving & past, middle, high),
+            at_lower,
+            at_upper,
+        )
+
+    start = (lower, upper, jnp.zeros_like(lower), jnp.zeros_like(upper))
+    low, high, at_lower, at_upper = jax.lax.fori_loop(0, halvings + 2, step, start)
+    return eqx.error_if(
+        0.5 * (low + high),
         jnp.sign(at_lower) == jnp.sign(at_upper),
         "stability_boundary: the growth rate has the same sign at both ends of the bracket; "
         "give a bracket with the root inside.",
     )
 
-    def halve(_, interval):
-        low, high = interval
-        middle = 0.5 * (low + high)
-        past = (growth_rate(middle, args) > 0) == rising
-        return jnp.where(past, low, middle), jnp.where(past, middle, high)
 
-    low, high = jax.lax.fori_loop(0, halvings, halve, (lower, upper))
-    return 0.5 * (low + high)
-
-
-# Both derivatives in forward mode (v is a scalar): the growth rate is already a derivative
-# of the equations, and reverse mode over it compiles far larger programs. Each
-# differentiates in its own variable only, the other closed over as a constant.
+# Both slopes in forward mode (v is a scalar): the growth rate is already a derivative of the
+# equations, and reverse mode over it compiles far larger programs. One program gives both,
+# its tangents arguments: the slope in speed is `_slope(..., 1, 0)`, the one along the
+# parameters `_slope(..., 0, dp)`, which stays linear in dp (reverse mode transposes it).
 @eqx.filter_jit
-def _slope_in_speed(growth_rate, root, args):
-    return jax.jvp(lambda v: growth_rate(v, args), (root,), (jnp.ones_like(root),))[1]
-
-
-@eqx.filter_jit
-def _slope_along(growth_rate, root, args, args_tangent):
-    return jax.jvp(lambda p: growth_rate(root, p), (args,), (args_tangent,))[1]
+def _slope(growth_rate, root, args, speed_tangent, args_tangent):
+    return jax.jvp(growth_rate, (root, args), (speed_tangent, args_tangent))[1]
 
 
 @_boundary.defjvp
 def _boundary_jvp(growth_rate, halvings, primals, tangents):
     lower, upper, args = primals
     root = _boundary(growth_rate, halvings, lower, upper, args)
-    moved = _slope_along(growth_rate, root, args, tangents[2])
-    return root, -moved / _slope_in_speed(growth_rate, root, args)
+    # A float0 tangent (of an integer leaf) is zero already.
+    no_args = jax.tree.map(
+        lambda t: t if t.dtype == jax.dtypes.float0 else jnp.zeros_like(t), tangents[2]
+    )
+    no_speed = jnp.zeros_like(root)
+    along = _slope(growth_rate, root, args, no_speed, tangents[2])
+    return root, -along / _slope(growth_rate, root, args, jnp.ones_like(root), no_args)
