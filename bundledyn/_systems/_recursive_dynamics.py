@@ -283,25 +283,22 @@ def body_twist(motion: TreeMotion, U: Float[Array, "6"]) -> Float[Array, "6"]:
     return U - matmul(spd_inverse_6x6(I_r), relative_momentum)
 
 
-def _spd_inverse(D):
-    r"""Inverses of SPD blocks `D` `(k, w, w)` by their Cholesky factors, $D^{-1} = L^{-T}L^{-1}$,
-    unrolled into elementwise work (the blocks are at most 6×6)."""
+def _inverse_cholesky_factor(D):
+    r"""$L^{-1}$ of SPD blocks $D = LL^T$ `(k, w, w)`, lower triangular (zeros above the
+    diagonal), unrolled into elementwise work (the blocks are at most 6×6)."""
     w = D.shape[-1]
     L = {}
     for j in range(w):
         L[j, j] = jnp.sqrt(D[:, j, j] - sum(L[j, m] * L[j, m] for m in range(j)))
         for i in range(j + 1, w):
             L[i, j] = (D[:, i, j] - sum(L[i, m] * L[j, m] for m in range(j))) / L[j, j]
-    X = {}  # L^{-1}, lower triangular
+    X = {}
     for j in range(w):
         X[j, j] = 1.0 / L[j, j]
         for i in range(j + 1, w):
             X[i, j] = -sum(L[i, m] * X[m, j] for m in range(j, i)) / L[i, i]
-    rows = [
-        jnp.stack([sum(X[m, r] * X[m, s] for m in range(max(r, s), w)) for s in range(w)], -1)
-        for r in range(w)
-    ]
-    return jnp.stack(rows, -2)
+    zero = jnp.zeros_like(X[0, 0])
+    return jnp.stack([jnp.stack([X.get((r, c), zero) for c in range(w)], -1) for r in range(w)], -2)
 
 
 class _Bodies(NamedTuple):
@@ -341,26 +338,38 @@ def _level_order(system: Multibody, motion: TreeMotion, xi, shape_force, levels:
 
 class _Joint(NamedTuple):
     r"""One level's joints after the pass from the leaves: their columns $S$ `(k, w, 6)`,
-    $U = I^AS$ `(k, w, 6)`, $D^{-1}$ `(k, w, w)` and $u = Q - S^Tp^A$ `(k, w)`."""
+    $L^{-1}$ `(k, w, w)` of $D = LL^T$, $Y = L^{-1}U^T$ `(k, w, 6)` and $z = L^{-1}u$ `(k, w)`
+    (`_through_joints`)."""
 
     S: Array
-    U: Array
-    D_inv: Array
-    u: Array
+    L_inv: Array
+    Y: Array
+    z: Array
 
 
 def _through_joints(IA, pA, drift, S, Q, rotor):
     r"""One level's articulated inertias and biases seen from the parents, $I^a = I^A - UD^{-1}U^T$
-    and $p^a = p^A + I^ac + UD^{-1}u$ with $D = S^TI^AS + \operatorname{diag}(a)$, and its `_Joint`."""
+    and $p^a = p^A + I^ac + UD^{-1}u$ with $U = I^AS$, $D = S^TI^AS + \operatorname{diag}(a)$ and
+    $u = Q - S^Tp^A$, and its `_Joint`.
+
+    Both through $D$'s Cholesky factor, $I^a = I^A - Y^TY$ and $p^a = p^A + I^ac + Y^Tz$ with
+    $Y = L^{-1}U^T$, $z = L^{-1}u$: the entries of an explicit $D^{-1}$ are as large as
+    $1/\lambda_{\min}(D)$, and their rounding meets $U$'s large columns in every direction,
+    where $Y$'s rows carry $D$'s small pivots only as $1/\sqrt\lambda$, and only in the
+    direction that is small in $U$ too. A body of mass $m$ far out on a slide below a ball
+    joint makes $D$ that ill-conditioned: its eigenvalues go from the spin inertia about the
+    slide's line to $m\ell^2$ at the distance $\ell$.
+    """
     w = S.shape[1]
     U = einsum("kij,kwj->kwi", IA, S)
     D = einsum("kvi,kwi->kvw", S, U) + rotor[:, :, None] * jnp.eye(w, dtype=IA.dtype)[None]
     u = Q - einsum("kwi,ki->kw", S, pA)
-    D_inv = _spd_inverse(D)
-    UD = einsum("kvw,kvi->kwi", D_inv, U)
-    Ia = IA - einsum("kwi,kwj->kij", UD, U)
-    pa = pA + einsum("kij,kj->ki", Ia, drift) + einsum("kwi,kw->ki", UD, u)
-    return Ia, pa, _Joint(S, U, D_inv, u)
+    L_inv = _inverse_cholesky_factor(D)
+    Y = einsum("kvw,kwi->kvi", L_inv, U)
+    z = einsum("kvw,kw->kv", L_inv, u)
+    Ia = IA - einsum("kwi,kwj->kij", Y, Y)
+    pa = pA + einsum("kij,kj->ki", Ia, drift) + einsum("kwi,kw->ki", Y, z)
+    return Ia, pa, _Joint(S, L_inv, Y, z)
 
 
 def _from_the_leaves(levels: _Levels, base_inertia, base_bias, bodies: _Bodies):
@@ -413,14 +422,15 @@ def _into_parents(Ia, pa, parents):
 
 def _from_the_root(levels: _Levels, joints, drift, A0):
     r"""The pass from the root: $\mathcal A = \mathcal A_{\text{parent}} + c$,
-    $\ddot q = D^{-1}(u - U^T\mathcal A)$, then $\mathcal A \mathrel{+}= S\ddot q$ level by
-    level from the base's acceleration $\mathcal A_0$; $\ddot q$ in coordinate order."""
+    $\ddot q = D^{-1}(u - U^T\mathcal A) = L^{-T}(z - Y\mathcal A)$ (`_Joint`), then
+    $\mathcal A \mathrel{+}= S\ddot q$ level by level from the base's acceleration
+    $\mathcal A_0$; $\ddot q$ in coordinate order."""
     A_above = A0[None]
     solved = []
     for L, (joint, level_drift) in enumerate(zip(joints, _by_levels(drift, levels), strict=True)):
         A = _through(levels.parents[L], A_above) + level_drift
         if joint is not None:
-            qddot = einsum("kvw,kw->kv", joint.D_inv, joint.u - einsum("kwi,ki->kw", joint.U, A))
+            qddot = einsum("kvw,kv->kw", joint.L_inv, joint.z - einsum("kwi,ki->kw", joint.Y, A))
             A = A + einsum("kwi,kw->ki", joint.S, qddot)
             solved.append(qddot.reshape(-1))
         A_above = materialized(A)
