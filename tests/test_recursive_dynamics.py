@@ -339,10 +339,7 @@ def test_forward_jacobians_equal_the_dense_ones(name):
     """`jax.jacfwd` of the field in the integration state $x$ and the pose: equal to the
     dense field's to 1e-10 (relative to its largest entry)."""
     y = random_integration_state(scene(name), 3)
-    expected, actual = (
-        jax.jit(jax.jacfwd(field(name, algorithm), argnums=(0, 1)))(*y)
-        for algorithm in (bd.DenseField(), bd.ArticulatedBodyField())
-    )
+    expected, actual = (compiled_field(name, dense)[1](*y) for dense in (True, False))
     for a, e in zip(actual, expected, strict=True):
         assert largest_error(a, e) < 1e-10, largest_error(a, e)
 
@@ -355,6 +352,14 @@ def field(name, algorithm):
         return jnp.concatenate(s.mode.body_field(s, 0.3, (g, x)))
 
     return f
+
+
+@functools.cache
+def compiled_field(name, dense):
+    """The field of the scene `name`, by `DenseField` or by the recursions, and its forward
+    Jacobian in the pose and `x`, each compiled once for the tests that use them."""
+    f = field(name, bd.DenseField() if dense else bd.ArticulatedBodyField())
+    return jax.jit(f), jax.jit(jax.jacfwd(f, argnums=(0, 1)))
 
 
 def test_gradient_equals_the_dense_one():
@@ -416,15 +421,13 @@ def test_finite_where_a_ball_joint_is_home_or_half_a_turn_away(turn):
         jnp.eye(4), jnp.asarray(q), jnp.asarray(rng.normal(size=6)), jnp.asarray(rng.normal(size=d))
     )
     g, x = bd.SceneTerm(s).encode(0.3, state)
-    ours, dense = (
-        functools.partial(field("floating", a), g)
-        for a in (bd.ArticulatedBodyField(), bd.DenseField())
+    (ours, ours_jacobian), (dense, dense_jacobian) = (
+        compiled_field("floating", dense) for dense in (False, True)
     )
-    for fn in (jax.jit(ours), jax.jit(jax.jacfwd(ours))):
-        assert bool(jnp.all(jnp.isfinite(fn(x))))
-    assert relative_error(jax.jit(ours)(x), jax.jit(dense)(x)) < 1e-12
-    expected, actual = jax.jit(jax.jacfwd(dense))(x), jax.jit(jax.jacfwd(ours))(x)
-    assert largest_error(actual, expected) < 1e-10
+    value, (_, jacobian) = ours(g, x), ours_jacobian(g, x)
+    assert np.all(np.isfinite(value)) and np.all(np.isfinite(jacobian))
+    assert relative_error(value, dense(g, x)) < 1e-12
+    assert largest_error(jacobian, dense_jacobian(g, x)[1]) < 1e-10
 
 
 COUPLED = """
