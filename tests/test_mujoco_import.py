@@ -570,6 +570,21 @@ def test_converters_jit_vmap_grad(chain):
     assert all(np.all(np.isfinite(x)) for x in jax.tree.leaves(out))
 
 
+@jax.jit  # one program, not one per primitive
+def _ball_coordinates(quats, identity, zero):
+    """φ of `quats`, exp(φ̃), R(quat), the quaternion of φ back, and the Jacobians both ways at
+    the identity (`identity`, φ = `zero`)."""
+    phi = _rotation_vector_from_quaternion(quats)
+    return (
+        phi,
+        bundledyn.lie.so3_exp(phi),
+        bundledyn.lie.rotation_from_quaternion(quats),
+        _quaternion_from_rotation_vector(phi),
+        jax.jacfwd(_rotation_vector_from_quaternion)(identity),
+        jax.jacfwd(_quaternion_from_rotation_vector)(zero),
+    )
+
+
 def test_ball_coordinates_of_quaternions():
     """φ of a quaternion: exp(φ̃) = R(quat), |φ| ≤ π, both signs, near 0 and near π, exact
     derivatives at φ = 0."""
@@ -578,17 +593,16 @@ def test_ball_coordinates_of_quaternions():
     quats[:20, 1:] *= 1e-4  # near the identity, either sign of w
     quats[20:40, 0] *= 1e-7  # near a half turn
     quats[40:43] = [[1, 0, 0, 0], [-1, 0, 0, 0], [0, 0, 1, 0]]
-    phi = _rotation_vector_from_quaternion(jnp.asarray(quats))
-    R = bundledyn.lie.rotation_from_quaternion(quats)
-    np.testing.assert_allclose(bundledyn.lie.so3_exp(phi), R, atol=2e-15)
+    phi, exp_phi, R, back, J_phi, J_quat = (
+        np.asarray(x)
+        for x in _ball_coordinates(jnp.asarray(quats), jnp.array([1.0, 0, 0, 0]), jnp.zeros(3))
+    )
+    np.testing.assert_allclose(exp_phi, R, atol=2e-15)
     assert np.all(np.linalg.norm(phi, axis=-1) <= np.pi + 1e-15)
-    back = np.asarray(_quaternion_from_rotation_vector(phi))
     unit = quats / np.linalg.norm(quats, axis=-1, keepdims=True)
     np.testing.assert_allclose(back * np.sign(np.sum(back * unit, -1))[:, None], unit, atol=1e-15)
-    J = jax.jacfwd(_rotation_vector_from_quaternion)(jnp.array([1.0, 0, 0, 0]))
-    np.testing.assert_allclose(J, np.hstack([np.zeros((3, 1)), 2 * np.eye(3)]), atol=1e-15)
-    J = jax.jacfwd(_quaternion_from_rotation_vector)(jnp.zeros(3))
-    np.testing.assert_allclose(J, np.vstack([np.zeros((1, 3)), 0.5 * np.eye(3)]), atol=1e-15)
+    np.testing.assert_allclose(J_phi, np.hstack([np.zeros((3, 1)), 2 * np.eye(3)]), atol=1e-15)
+    np.testing.assert_allclose(J_quat, np.vstack([np.zeros((1, 3)), 0.5 * np.eye(3)]), atol=1e-15)
 
 
 # A root without a joint, which MuJoCo welds to the world, at a tilted pose; damped hinges

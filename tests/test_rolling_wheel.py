@@ -123,6 +123,13 @@ def _body_field(scene, y):
     return scene.mode.body_field(scene, 0.0, y)
 
 
+@eqx.filter_jit  # one program, not one per primitive
+def _residual_and_encoding(scene, python, state):
+    """The residual of `scene`'s rolling constraints at `state`, and `state` encoded in the
+    layout of `python` (the scene built here): a shipped scene's checks."""
+    return scene.mode.constraint_residual(scene, state), python.mode.encode(python, 0.0, state)
+
+
 Q0 = jnp.array([0.1, -0.2, 0.3, 0.25, 0.4, -0.2])
 E0 = jnp.array([0.7, -0.3, 12.0, 0.5])  # heading, tilt, spin and pitch rates
 T1, SAVES = 1.0, 11
@@ -255,12 +262,12 @@ def test_the_shipped_unicycle_scene_is_the_tree_built_in_python():
             _metric(tree, jnp.array([q])), _metric(_unicycle(), jnp.array([q])), atol=1e-15
         )
     # placed on the plane, rolling, with the file's shape and angular velocity
-    np.testing.assert_allclose(mode.constraint_residual(sf.scene, sf.state), 0.0, atol=1e-15)
-    np.testing.assert_allclose(sf.state.xi[:3], [0.0, 0.5, 0.7])
+    python = _scene()
+    residual, y = _residual_and_encoding(sf.scene, python, sf.state)
+    np.testing.assert_allclose(residual, 0.0, atol=1e-15)
+    np.testing.assert_allclose(np.asarray(sf.state.xi)[:3], [0.0, 0.5, 0.7])
     np.testing.assert_allclose(sf.state.qdot, [12.0])
     # and moves as the Python scene does from there
-    python = _scene()
-    y = python.mode.encode(python, 0.0, sf.state)
     for a, b in zip(_body_field(python, y), _body_field(sf.scene, y), strict=True):
         np.testing.assert_allclose(a, b, rtol=1e-13, atol=1e-13)
 
@@ -393,8 +400,8 @@ def test_the_shipped_bicycle_scene_is_the_tree_built_from_the_papers_parameters(
         np.testing.assert_allclose(_metric(tree, q), _metric(python.system, q), atol=1e-12)
     # upright, both wheels on the ground and rolling, forward at 4.6 m/s, rolled at 0.5 rad/s
     # about the rear contact, so the rear wheel's centre, 0.3 above it, moves sideways
-    np.testing.assert_allclose(mode.constraint_residual(sf.scene, sf.state), 0.0, atol=1e-14)
+    residual, y = _residual_and_encoding(sf.scene, python, sf.state)
+    np.testing.assert_allclose(residual, 0.0, atol=1e-14)
     np.testing.assert_allclose(sf.state.xi, [0.5, 0.0, 0.0, 4.6, 0.5 * 0.3, 0.0], atol=1e-14)
-    y = python.mode.encode(python, 0.0, sf.state)
     for a, b in zip(_body_field(python, y), _body_field(sf.scene, y), strict=True):
         np.testing.assert_allclose(a, b, rtol=1e-12, atol=1e-12)
