@@ -208,11 +208,12 @@ def _round_trips(scene, state, t):
     y = term.encode(t, state)
     decoded = term.decode(t, y)
     state_again, U = term.decode_with_locked_velocity(t, y)
+    unpacked = term.unpack(t, y)
     return (
         y,
         term.encode(t, decoded),
-        term.pack(t, *term.unpack(t, y)),
-        (U, term.unpack(t, y)[2]),
+        term.pack(t, *unpacked),
+        (U, unpacked[2]),
         (state_again.xi, decoded.xi),
     )
 
