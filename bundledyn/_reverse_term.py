@@ -1,13 +1,19 @@
-r"""The scene's field with the hand-derived reverse pass (`body_field_vjp`), for the terms'
-reverse-mode variants (`ReverseModeSceneTerm`, `ReplayedSceneTerm`).
+r"""The scene's field as a `jax.custom_vjp` for reverse mode (`ReverseModeSceneTerm`,
+`ReplayedSceneTerm`): its VJP needs only the field's inputs and outputs, so the adjoint's
+reverse sweep can replay the field's values instead of evaluating the field again.
 
 A `jax.custom_vjp` cannot be differentiated in forward mode, which the library needs
 (identification pushes directions through rollouts; the geometry uses `jacfwd`), and one
 nested in a `custom_jvp` rule cannot be transposed. So the custom reverse pass is not put on
 `SceneTerm`'s field: `StoredStepsAdjoint`, which differentiates each step itself in its
 reverse sweep, steps the terms' reverse-mode variants there (`for_reverse_mode`), and the
-forward solve, forward mode and every other adjoint keep the plain field. The pass is
-written for `FreeShapeMode`'s layout, $x = [q, U, \dot q]$, in the Galilean frame.
+forward solve, forward mode and every other adjoint keep the plain field.
+
+The VJP is the written-out pass (`body_field_vjp`) where it covers the scene and costs less
+(`written_out`): a dense field, or the recursions' on a small tree, on `FreeShapeMode`'s
+layout $x = [q, U, \dot q]$ in the Galilean frame. Elsewhere it is autodiff's VJP of the
+field, evaluated again at the state: the articulated-body recursions' transposed pass grows
+with the bodies, where the written-out pass goes through the dense metric.
 """
 
 import equinox as eqx
@@ -18,10 +24,10 @@ from jax.ad_checkpoint import checkpoint_name
 
 from ._dynamics_vjp import body_field_vjp
 from ._effects import Kinematics
-from ._modes import FreeShapeMode
+from ._modes import DenseField, FreeShapeMode
 from ._scene import Scene
 
-__all__ = ["KEPT_FIELD_OUTPUTS", "check_covered", "covered", "replayed_field", "reverse_mode_field"]
+__all__ = ["KEPT_FIELD_OUTPUTS", "replayed_field", "reverse_mode_field", "written_out"]
 
 KEPT_FIELD_OUTPUTS = "bundledyn_kept_field_outputs"
 """The `jax.ad_checkpoint.checkpoint_name` under which a field's outputs are kept, not
@@ -30,19 +36,24 @@ whose reverse pass needs only its inputs and outputs (a `jax.custom_vjp`, as
 `ReverseModeSceneTerm`'s) names them so, and its stage is then evaluated once, not twice."""
 
 
-def covered(scene: Scene) -> bool:
-    """Whether the hand-derived reverse pass covers `scene`: a floating base and a free
-    shape (`FreeShapeMode`, any system with $d > 0$, any effects) in the Galilean frame."""
-    return isinstance(scene.mode, FreeShapeMode) and scene.frame is None
+# Where the written-out pass through the dense metric stops costing less than autodiff's
+# transpose of the articulated-body recursions: their gradients take the same time on
+# dm_control's 56-coordinate CMU humanoid (benchmarks/README.md).
+_WRITTEN_OUT_MOST_COORDINATES = 56
 
 
-def check_covered(scene: Scene, name: str):
-    """Raise `ValueError` if the hand-derived reverse pass does not cover `scene`."""
-    if not covered(scene):
-        raise ValueError(
-            f"`{name}` needs a scene with a floating base and a free shape (d > 0) in the "
-            "Galilean frame; use `SceneTerm` for any other scene."
+def written_out(scene: Scene) -> bool:
+    """Whether the field's VJP is the written-out pass (`body_field_vjp`): a floating base and
+    a free shape (`FreeShapeMode`) in the Galilean frame, with the dense field or at most
+    `_WRITTEN_OUT_MOST_COORDINATES` shape coordinates."""
+    return (
+        isinstance(scene.mode, FreeShapeMode)
+        and scene.frame is None
+        and (
+            isinstance(scene.algorithm, DenseField)
+            or scene.system.shape_dim <= _WRITTEN_OUT_MOST_COORDINATES
         )
+    )
 
 
 def _field(scene: Scene, t, y):
@@ -105,7 +116,11 @@ def _field_vjp(out, grad_out, perturbed, scene__y, t):
         # together costs less than the written-out pass plus a transpose for the scene.
         _, vjp = jax.vjp(lambda scene, y: _field(scene, t, y), scene, y)
         return vjp(cotangents)
-    return eqx.filter(scene, lambda _: False), _state_vjp(scene, y, t, out, cotangents)
+    unperturbed = eqx.filter(scene, lambda _: False)
+    if written_out(scene):
+        return unperturbed, _state_vjp(scene, y, t, out, cotangents)
+    _, vjp = jax.vjp(lambda y: _field(scene, t, y), y)
+    return unperturbed, vjp(cotangents)[0]
 
 
 _reverse_mode_field.def_bwd(_field_vjp)
@@ -130,10 +145,12 @@ def _replayed_field_bwd(out, grad_out, perturbed, scene__y, t, _):
 
 @eqx.filter_jit
 def reverse_mode_field(scene: Scene, t, y):
-    r"""The field $(\xi, \dot x)$ of a covered scene at `y`, with the hand-derived reverse pass."""
+    r"""The field $(\xi, \dot x)$ of `scene` at `y`, with the reverse pass of the module
+    docstring."""
     return _reverse_mode_field((scene, y), t)
 
 
 def replayed_field(scene: Scene, t, y, values):
-    """The field's known `values` at `y`, with the hand-derived reverse pass at `(scene, y)`."""
+    """The field's known `values` at `y`, with the reverse pass at `(scene, y)` of the module
+    docstring."""
     return _replayed_field((scene, y), t, jax.lax.stop_gradient(values))

@@ -6,7 +6,7 @@ are $y = (g, x)$, with the locked velocity $U = \xi + A(q)\dot q$ in place of $\
 (seed 004, §2), laid out by the scene's mode (`AbstractMode`: which parts are integrated
 and how they are packed). `AbstractSceneTerm` is what solvers and adjoints may use of a
 scene: the codec (`encode`, `decode`, `pack`, `unpack`), the metric and the forces, the
-recharting of ball joints, and the variants with the hand-derived reverse pass
+recharting of ball joints, and the variants whose field has its own reverse pass
 (`reverse_mode`, `replayed`); they reach nothing else of it.
 
 The pose is the first leaf of $y$ in `jax.tree_util` order; the Lie-group solvers rely on
@@ -27,8 +27,6 @@ from ._effects import Kinematics
 from ._linalg import dot
 from ._reverse_term import (
     KEPT_FIELD_OUTPUTS,
-    check_covered,
-    covered,
     replayed_field,
     reverse_mode_field,
 )
@@ -114,7 +112,7 @@ class AbstractSceneTerm(AbstractBodyTerm):
     r"""A scene's term: what solvers and adjoints use of a scene.
 
     The codec and the scene's quantities are delegated to the scene's mode; the field
-    (`body_vf`) and the variants with the hand-derived reverse pass (`reverse_mode`,
+    (`body_vf`) and the variants whose field has its own reverse pass (`reverse_mode`,
     `replayed`) are each final term's own.
     """
 
@@ -128,14 +126,14 @@ class AbstractSceneTerm(AbstractBodyTerm):
 
     @abc.abstractmethod
     def reverse_mode(self) -> "AbstractSceneTerm | None":
-        """This term with the field's hand-derived reverse pass (for reverse mode only), or
-        None where that pass does not cover the scene."""
+        """This term with the field's own reverse pass, a VJP that needs only the field's
+        inputs and outputs (for reverse mode only), or None where the term has none."""
 
     @abc.abstractmethod
     def replayed(self, values) -> "AbstractSceneTerm | None":
         r"""A term that gives back the field's known `values` $(\xi, \dot x)$ at the state
-        it will be evaluated at, with the hand-derived reverse pass; None where that pass
-        does not cover the scene."""
+        it will be evaluated at, with the field's own reverse pass there; None where the
+        term has none."""
 
     def recharted(self, t, y):
         r"""`y` with every ball joint's rotation vector in $|\varphi| \le \pi$: the same state
@@ -246,28 +244,32 @@ class SceneTerm(AbstractSceneTerm):
         return _scene_body_vf(self.scene, t, y)
 
     def reverse_mode(self):
-        return ReverseModeSceneTerm(self.scene) if covered(self.scene) else None
+        return ReverseModeSceneTerm(self.scene)
 
     def replayed(self, values):
-        return ReplayedSceneTerm(self.scene, values) if covered(self.scene) else None
+        return ReplayedSceneTerm(self.scene, values)
 
 
 class ReverseModeSceneTerm(AbstractSceneTerm):
-    r"""`SceneTerm` with the field's hand-derived reverse pass (`body_field_vjp`): the same
-    field and codec, for reverse mode only (it has no forward-mode derivative).
+    r"""`SceneTerm` with the field's reverse pass as a custom VJP (`_reverse_term.py`): the
+    same field and codec, for reverse mode only (it has no forward-mode derivative).
+
+    The VJP is written out (`body_field_vjp`) for a floating base and a free shape in the
+    Galilean frame, through the dense metric, where that costs less than autodiff's
+    transpose of the field (the dense field, or a tree of at most 56 shape coordinates);
+    elsewhere it is autodiff's VJP of the field evaluated again. Either way it needs only
+    the field's inputs and outputs, so the adjoint can replay the values
+    (`ReplayedSceneTerm`).
 
     **Arguments:**
 
-    - `scene`: a `Scene` with a floating base and a free shape in the Galilean frame.
+    - `scene`: the `Scene`.
     """
 
     scene: Scene
 
-    def __check_init__(self):
-        check_covered(self.scene, type(self).__name__)
-
     def body_vf(self, t, y, args):
-        r"""$(\xi, \dot x)$, $\dot x = (\dot q, \dot U, \ddot q)$, as `SceneTerm.body_vf`."""
+        r"""$(\xi, \dot x)$ in the mode's layout, as `SceneTerm.body_vf`."""
         return reverse_mode_field(self.scene, t, y)
 
     def reverse_mode(self):
@@ -279,7 +281,7 @@ class ReverseModeSceneTerm(AbstractSceneTerm):
 
 class ReplayedSceneTerm(AbstractSceneTerm):
     r"""`ReverseModeSceneTerm` whose field's values at the state it will be evaluated at
-    are known: it gives them back (`values`), and its reverse pass is the written-out one.
+    are known: it gives them back (`values`), with `ReverseModeSceneTerm`'s reverse pass.
 
     `StoredStepsAdjoint` keeps the field's values at a step's stages in its forward solve
     and steps again with these terms in its reverse sweep (`AbstractRKMK.stage_step`), so
@@ -288,18 +290,15 @@ class ReplayedSceneTerm(AbstractSceneTerm):
 
     **Arguments:**
 
-    - `scene`: a `Scene` that `ReverseModeSceneTerm` takes.
+    - `scene`: the `Scene`.
     - `values`: the field's values $(\xi, \dot x)$ there, as `SceneTerm.body_vf` gives them.
     """
 
     scene: Scene
     values: tuple
 
-    def __check_init__(self):
-        check_covered(self.scene, type(self).__name__)
-
     def body_vf(self, t, y, args):
-        """The stored `values`, with the written-out reverse pass at `(scene, y)`."""
+        """The stored `values`, with `ReverseModeSceneTerm`'s reverse pass at `(scene, y)`."""
         return replayed_field(self.scene, t, y, self.values)
 
     def reverse_mode(self):
@@ -331,6 +330,6 @@ def for_replay(terms, values):
 
 
 def has_reverse_mode(terms) -> bool:
-    """Whether a scene term in `terms` has a variant with the hand-derived reverse pass."""
+    """Whether a scene term in `terms` has a variant whose field has its own reverse pass."""
     leaves = jtu.tree_leaves(terms, is_leaf=lambda x: isinstance(x, AbstractSceneTerm))
     return any(isinstance(x, AbstractSceneTerm) and x.reverse_mode() is not None for x in leaves)

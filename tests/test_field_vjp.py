@@ -9,12 +9,13 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
-from systems import SYSTEMS
+from systems import SYSTEMS, chain
 
 import bundledyn as bd
 from bundledyn._dynamics import reference_accelerations
 from bundledyn._effects import Kinematics
 from bundledyn._geometry import connection
+from bundledyn._reverse_term import _WRITTEN_OUT_MOST_COORDINATES, written_out
 from bundledyn._systems._ball_chart import ball_columns
 from bundledyn._term import (
     ReplayedSceneTerm,
@@ -216,20 +217,21 @@ def test_reverse_pass_matches_central_differences(name):
     np.testing.assert_allclose(float(predicted), float(differences), rtol=1e-7, atol=1e-8)
 
 
-def test_only_scenes_it_covers_are_swapped():
-    chain = _scene("chain5")
-    assert isinstance(for_reverse_mode(bd.SceneTerm(chain)), ReverseModeSceneTerm)
+def test_every_scene_is_swapped_and_the_pass_is_written_out_where_it_applies():
+    five = _scene("chain5")
     rigid = bd.Scene(SYSTEMS["rigid_body"]())
-    assert isinstance(for_reverse_mode(bd.SceneTerm(rigid)), bd.SceneTerm)
-    framed = bd.Scene(chain.system, frame=bd.FreeFalling(9.81, (0.0, 0.0, -1.0)))
-    assert isinstance(for_reverse_mode(bd.SceneTerm(framed)), bd.SceneTerm)
-    with pytest.raises(ValueError, match="floating base and a free shape"):
-        ReverseModeSceneTerm(rigid)
-    values = (jnp.zeros(6), jnp.zeros(2 * chain.system.shape_dim + 6))
-    assert isinstance(for_replay(bd.SceneTerm(chain), values), ReplayedSceneTerm)
-    assert isinstance(for_replay(bd.SceneTerm(framed), values), bd.SceneTerm)
-    with pytest.raises(ValueError, match="floating base and a free shape"):
-        ReplayedSceneTerm(rigid, values)
+    framed = bd.Scene(five.system, frame=bd.FreeFalling(9.81, (0.0, 0.0, -1.0)))
+    held = bd.Scene(five.system, five.effects, base=bd.PrescribedBase.fixed())
+    long_chain = chain(37)
+    floating_long = bd.Scene(long_chain)
+    dense_long = bd.Scene(long_chain, algorithm=bd.DenseField())
+    for scene in (five, rigid, framed, held, floating_long):
+        assert isinstance(for_reverse_mode(bd.SceneTerm(scene)), ReverseModeSceneTerm)
+        values = (jnp.zeros(6), jnp.zeros(2 * scene.system.shape_dim + 6))
+        assert isinstance(for_replay(bd.SceneTerm(scene), values), ReplayedSceneTerm)
+    assert long_chain.shape_dim > _WRITTEN_OUT_MOST_COORDINATES >= five.system.shape_dim
+    assert written_out(five) and written_out(dense_long)
+    assert not any(map(written_out, (rigid, framed, held, floating_long)))
 
 
 def test_the_replayed_field_gives_its_values_back_with_the_fields_reverse_pass():
@@ -259,3 +261,50 @@ def test_the_replayed_field_gives_its_values_back_with_the_fields_reverse_pass()
     for a, b in zip(jax.tree.leaves((both, state_only)), jax.tree.leaves(written_out), strict=True):
         scale = float(jnp.max(jnp.abs(b), initial=0.0)) + 1.0
         np.testing.assert_allclose(np.asarray(a), np.asarray(b), rtol=0, atol=1e-12 * scale)
+
+
+@pytest.mark.parametrize("where", ["held base", "falling frame"])
+def test_where_the_pass_is_not_written_out_it_is_the_fields_own_vjp(where):
+    # The reverse-mode and replayed terms of scenes the written-out pass does not cover
+    # transpose the field by autodiff: their cotangents on the state equal the plain field's
+    # Jacobian (forward mode, which goes through no custom VJP) contracted with the cotangent.
+    five = _scene("chain5")
+    if where == "held base":
+        scene = bd.Scene(five.system, five.effects, base=bd.PrescribedBase.fixed())
+    else:
+        scene = bd.Scene(five.system, five.effects, frame=bd.FreeFalling(9.81, (0.0, 0.0, -1.0)))
+    assert not written_out(scene)
+    term = bd.SceneTerm(scene)
+    d = scene.system.shape_dim
+    k = jax.random.split(jax.random.PRNGKey(8), 3)
+    state = bd.State(
+        bd.lie.se3_exp(0.5 * jax.random.normal(k[0], (6,))),
+        0.5 * jax.random.normal(k[1], (d,)),
+        jnp.array([0.3, -0.2, 0.5, 0.1, 0.0, -0.1]),
+        jax.random.normal(k[2], (d,)),
+    )
+    y = term.encode(0.4, state)
+
+    @jax.jit
+    def cotangents(y):
+        values = term.body_vf(0.4, y, None)
+        cotangent = jax.tree.map(lambda v: jnp.cos(jnp.arange(v.size, dtype=v.dtype)), values)
+        jacobian = jax.jacfwd(lambda y: term.body_vf(0.4, y, None))(y)
+        expected = jax.tree.map(
+            lambda *parts: sum(parts),
+            *[
+                jax.tree.map(lambda j, c=c: jnp.tensordot(c, j, axes=c.ndim), jac)
+                for c, jac in zip(cotangent, jacobian, strict=True)
+            ],
+        )
+        ours = [
+            jax.vjp(lambda y, t=t: t.body_vf(0.4, y, None), y)[1](cotangent)[0]
+            for t in (ReverseModeSceneTerm(scene), ReplayedSceneTerm(scene, values))
+        ]
+        return expected, ours
+
+    expected, ours = cotangents(y)
+    for theirs in ours:
+        for a, b in zip(jax.tree.leaves(theirs), jax.tree.leaves(expected), strict=True):
+            scale = max(float(jnp.max(jnp.abs(b))), 1.0)
+            np.testing.assert_allclose(np.asarray(a), np.asarray(b), rtol=0, atol=1e-12 * scale)

@@ -70,8 +70,8 @@ class StoredStepsAdjoint(diffrax.AbstractAdjoint):
     `benchmarks/README.md`). `bundledyn.simulate` uses it with its Lie-group
     solvers.
 
-    With an `AbstractStageReplaySolver` (the `AbstractRKMK` methods) and a scene whose
-    term has the written-out pass (`AbstractSceneTerm.reverse_mode`), the forward solve
+    With an `AbstractStageReplaySolver` (the `AbstractRKMK` methods) and a term whose field
+    has its own reverse pass (`AbstractSceneTerm.reverse_mode`: every scene's), the forward solve
     instead keeps the start states and the field's values at the stages of its last
     accepted steps, as many as fit in `stage_memory` bytes, and the start state of every
     block of that many steps (`StageRecorder`). The reverse sweep then steps with terms
@@ -104,14 +104,13 @@ class StoredStepsAdjoint(diffrax.AbstractAdjoint):
     - `fallback`: the adjoint used past the budget or where this one does not apply
       (default `diffrax.RecursiveCheckpointAdjoint()`, binomial checkpointing).
     - `field_reverse`: how each step's VJP passes through a scene's field:
-      `"hand-derived"` (default), the field's reverse pass written out
-      (`ReverseModeSceneTerm`: a floating base and a free shape in the Galilean frame;
-      other scenes keep autodiff), or `"autodiff"`. The same gradients either way. The
-      written-out pass needs only the field's inputs and outputs, so the reverse sweep
-      replays the field's values (above) instead of evaluating it again; with respect to
-      the state (`y0`) the gradient then takes less time than with `"autodiff"`, which
-      transposes the field. Where the scene's numbers are differentiated too, both transpose the
-      field by autodiff, and `"autodiff"` is a few percent faster.
+      `"hand-derived"` (default), the field's own reverse pass (`ReverseModeSceneTerm`:
+      written out for a floating base and a free shape in the Galilean frame where that
+      costs less, elsewhere autodiff's VJP of the field), or `"autodiff"`, which transposes
+      each step's stages, field included. The same gradients either way. The field's own
+      pass needs only the field's inputs and outputs, so the reverse sweep replays the
+      field's values (above) instead of evaluating the stages again; the gradient then
+      takes less time than with `"autodiff"`.
     """
 
     max_memory: int = eqx.field(default=2**30, static=True)
