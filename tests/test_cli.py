@@ -55,7 +55,8 @@ def ran(tmp_path_factory):
 def test_run_writes_trajectory_with_its_scene(ran):
     scene, out, code = ran
     assert code == 0
-    data = np.load(out / "spin.npz")
+    with np.load(out / "spin.npz") as archive:
+        data = dict(archive)
     assert str(data["scene"]) == scene.read_text()
     metadata = json.loads(str(data["metadata"]))
     assert metadata["solver"] == "RKMK87" and metadata["bundledyn"] == bd.__version__
@@ -189,7 +190,8 @@ def test_run_over_a_batch_of_initial_states_is_each_run_alone(tmp_path, capsys):
     out = capsys.readouterr().out
     assert "3 members on 1 device, 2 at a time" in out and "chunk 2/2: members 2-2 of 3" in out
     assert "lockstep ran" in out and "energy: largest" in out
-    saved = np.load(tmp_path / "spin_batch.npz")
+    with np.load(tmp_path / "spin_batch.npz") as archive:
+        saved = dict(archive)
     assert len(set(saved["num_steps"].tolist())) == 3
     file = bd.SceneFile.load(scene)
     for member, twist in enumerate(xi):

@@ -169,7 +169,8 @@ def test_the_command_line_runs_a_mode_of_the_test_file(tmp_path, monkeypatch, ca
     assert main(["run", "hinged.toml", "--out", str(tmp_path)]) == 0
     printed = capsys.readouterr().out
     assert "mode HingedBody" in printed
-    saved = np.load(tmp_path / "falling_cat.npz")
+    with np.load(tmp_path / "falling_cat.npz") as archive:
+        saved = dict(archive)
     expected = _pendulum(jnp.asarray(1.2), jnp.asarray(0.5), jnp.asarray(saved["ts"]))
     np.testing.assert_allclose(_angle(saved["g"]), expected[:, 0], atol=1e-7)
     np.testing.assert_allclose(saved["energy"], saved["energy"][0], rtol=1e-7)
