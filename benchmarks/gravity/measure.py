@@ -28,7 +28,8 @@ class PotentialGravity(bd.AbstractPotential):
 
 def _field_vjp_sampler(scene, state):
     """Seconds per VJP of the body field as `simulate`'s default adjoint takes it: the
-    field's values kept, its written-out reverse pass (`ReplayedSceneTerm`)."""
+    field's values kept, its own reverse pass (`ReplayedSceneTerm`: written out where it
+    applies, else autodiff's)."""
     from bundledyn._term import for_replay
 
     term = bd.SceneTerm(scene)
