@@ -174,6 +174,35 @@ class Gravity(AbstractPotential):
         return F_b, rows[3:6, 6:].T @ weight / m
 
 
+def uniform_fields(effects) -> tuple[Float[Array, "3"] | None, tuple]:
+    r"""The uniform fields among `effects`: `Gravity`s acting on every body as on its inertial
+    mass (no gravitational mass of their own, no centre offset), which are the acceleration
+    $\gamma$ of a frame falling with them (seed 004, Theorem 3.4), not forces.
+
+    **Arguments:**
+
+    - `effects`: a scene's effects.
+
+    **Returns:**
+
+    `(gamma, others)`: their summed acceleration $\gamma$ in the Galilean frame, `(3,)`
+    (`None` without one), and the other effects in their order.
+    """
+    fields = [e for e in effects if _is_uniform_field(e)]
+    others = tuple(e for e in effects if not _is_uniform_field(e))
+    if not fields:
+        return None, others
+    return jnp.sum(jnp.stack([e.g * e.direction for e in fields]), axis=0), others
+
+
+def _is_uniform_field(effect) -> bool:
+    return (
+        type(effect) is Gravity
+        and effect.gravitational_mass is None
+        and effect.centre_offset is None
+    )
+
+
 class AbstractCentralGravity(AbstractPotential):
     r"""A central Newtonian field $-\mu/|x - x_0|$ with its gravity gradient (seed 004, §3).
 

@@ -23,7 +23,8 @@ import jax.tree_util as jtu
 from jax.ad_checkpoint import checkpoint_name
 
 from ._dynamics_vjp import body_field_vjp
-from ._effects import Kinematics
+from ._effects import Kinematics, total_force, uniform_fields
+from ._linalg import matmul
 from ._modes import DenseField, FreeShapeMode
 from ._scene import Scene
 
@@ -77,17 +78,26 @@ def _materialized(ct, like):
 
 
 def _state_vjp(scene, y, t, out, cotangents):
-    """The cotangent on the state `y = (g, x)` of the field's outputs `out`, by
-    `body_field_vjp`."""
+    r"""The cotangent on the state `y = (g, x)` of the field's outputs `out`, by
+    `body_field_vjp`.
+
+    A uniform field adds $(0, R^T\gamma)$ to $\dot U$ and nothing else (seed 004, Theorem
+    3.4), so the pass takes the field without it and adds its cotangent on $R$: through
+    the forces it would differentiate the metric's rows along $q$ (`Gravity`'s).
+    """
     g, x = y
     d = scene.system.shape_dim
     q, U, qdot = x[:d], x[d : d + 6], x[d + 6 :]
     xi_bar, xdot_bar = cotangents
     Udot, qddot = out[1][d : d + 6], out[1][d + 6 :]
+    gamma, others = uniform_fields(scene.effects)
+    if gamma is not None:
+        gamma = gamma.astype(q.dtype)
+        Udot = Udot - jnp.concatenate([jnp.zeros(3, q.dtype), matmul(g[:3, :3].T, gamma)])
 
     def forces_vjp(mu_xi, mu_q):
         def forces(g, q, xi, qdot):
-            return scene.forces(Kinematics(t, g, q, xi, qdot))
+            return total_force(others, scene.system, Kinematics(t, g, q, xi, qdot))
 
         _, vjp = jax.vjp(forces, g, q, out[0], qdot)  # the field's first output is ξ
         g_bar, q_bar, xi_bar_f, qdot_bar = vjp((mu_xi, mu_q))
@@ -103,6 +113,8 @@ def _state_vjp(scene, y, t, out, cotangents):
         (xi_bar, xdot_bar[d : d + 6], xdot_bar[d + 6 :]),
         forces_vjp,
     )
+    if gamma is not None:  # ∂/∂R of Ū̇_v·Rᵀγ = γ Ū̇_vᵀ
+        g_bar = g_bar.at[:3, :3].add(jnp.outer(gamma, xdot_bar[d + 3 : d + 6]))
     return g_bar, jnp.concatenate([q_bar, U_bar, qdot_bar + xdot_bar[:d]])
 
 

@@ -4,7 +4,6 @@ by the articulated-body recursions over a tree."""
 import abc
 
 import equinox as eqx
-import jax.numpy as jnp
 from jaxtyping import Array
 
 from .._dynamics import (
@@ -13,7 +12,7 @@ from .._dynamics import (
     locked_acceleration,
     shape_acceleration,
 )
-from .._effects import Gravity, Kinematics, total_force
+from .._effects import Kinematics, total_force, uniform_fields
 from .._linalg import matmul
 from .._systems._multibody import Multibody
 from .._systems._recursive_dynamics import (
@@ -89,25 +88,13 @@ class DenseField(AbstractFieldAlgorithm):
         return driven_shape_acceleration(scene.system, q, xi, xi_dot, qdot, Q)
 
 
-def _is_uniform_field(effect) -> bool:
-    """Whether `effect` is a `Gravity` acting on every body as on its inertial mass (no
-    gravitational mass of its own, no centre offset): a field, not forces."""
-    return (
-        type(effect) is Gravity
-        and effect.gravitational_mass is None
-        and effect.centre_offset is None
-    )
-
-
 def _field_and_forces(scene, kin: Kinematics):
     r"""The uniform fields' acceleration in section axes $\gamma_b = R^T\sum\gamma$ (None
     without one) and the other effects' forces `(F_b, Q_H)` at `kin`."""
-    fields = [e for e in scene.effects if _is_uniform_field(e)]
-    others = [e for e in scene.effects if not _is_uniform_field(e)]
+    gamma, others = uniform_fields(scene.effects)
     F, Q = total_force(others, scene.system, kin)
-    if not fields:
+    if gamma is None:
         return None, F, Q
-    gamma = jnp.sum(jnp.stack([e.g * e.direction for e in fields]), axis=0)
     return matmul(kin.g[:3, :3].T, gamma.astype(kin.q.dtype)), F, Q
 
 
