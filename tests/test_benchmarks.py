@@ -14,7 +14,7 @@ from benchmarks.accuracy_cost.sweep import default_solver
 
 BENCHMARKS = {
     "accuracy_cost", "speed", "speed_gpu", "family", "identification", "stress", "nonholonomic",
-    "tensorial", "gravity", "survey", "devices",
+    "tensorial", "gravity", "survey", "devices", "growth",
 }  # fmt: skip
 
 

@@ -1,17 +1,14 @@
 """One member's field costs with and without gravity, timed in alternation with `mj_forward`."""
 
-import functools
-
 import mujoco
 import numpy as np
 
 import bundledyn as bd
-from benchmarks._timing import interleaved, loop_sampler
+from benchmarks._timing import interleaved
 from benchmarks.family.members import Member, initial_qpos_qvel, mujoco_model
 from benchmarks.speed.field import data_forward_sampler, scene_field_sampler
-from benchmarks.speed.gradient import vjp_unit
+from benchmarks.speed.gradient import replayed_field_vjp_sampler
 
-CALLS = 1000
 GRAVITY = bd.Gravity(9.81)
 # The Earth's gravity gradient on the model, 400 km above the ground.
 GRAVITY_GRADIENT = bd.GravityGradient(3.986004418e14, (0.0, 0.0, -6.771e6))
@@ -24,23 +21,6 @@ class PotentialGravity(bd.AbstractPotential):
 
     def potential(self, system, t, g, q):
         return self.gravity.potential(system, t, g, q)
-
-
-def _field_vjp_sampler(scene, state):
-    """Seconds per VJP of the body field as `simulate`'s default adjoint takes it: the
-    field's values kept, its own reverse pass (`ReplayedSceneTerm`: written out where it
-    applies, else autodiff's)."""
-    from bundledyn._term import for_replay
-
-    term = bd.SceneTerm(scene)
-    y = term.encode(0.0, state)
-
-    def field(i, y, term):  # the twist as a 4×4 matrix, so that the loop can feed it back
-        xi, xdot = term.body_vf(0.0, y, None)
-        return bd.lie.se3_hat(xi), xdot
-
-    replayed = for_replay(term, term.body_vf(0.0, y, None))
-    return loop_sampler(vjp_unit(functools.partial(field, term=replayed)), y, CALLS)
 
 
 def _agreement(system, state):
@@ -69,9 +49,9 @@ def member_run(member: Member, repeats: int):
         "gravity": scene_field_sampler(weighed, state),
         "potential_gradient": scene_field_sampler(by_potential, state),
         "gravity_gradient": scene_field_sampler(bd.Scene(system, [GRAVITY_GRADIENT]), state),
-        "field_vjp": _field_vjp_sampler(bare, state),
-        "gravity_vjp": _field_vjp_sampler(weighed, state),
-        "potential_gradient_vjp": _field_vjp_sampler(by_potential, state),
+        "field_vjp": replayed_field_vjp_sampler(bare, state),
+        "gravity_vjp": replayed_field_vjp_sampler(weighed, state),
+        "potential_gradient_vjp": replayed_field_vjp_sampler(by_potential, state),
         "mj_forward": data_forward_sampler(model, data),
     }
     times = {name: stats for name, (_, stats) in interleaved(samplers, repeats).items()}

@@ -129,6 +129,23 @@ def vjp_unit(fn):
     return lambda i, y: jax.vjp(lambda y: fn(i, y), y)[1](y)[0]
 
 
+def replayed_field_vjp_sampler(scene, state, calls=LOOP_EVALS):
+    """A sampler of seconds per VJP of `scene`'s body field at `state` as `simulate`'s
+    default adjoint takes it (`loop_sampler`): the field's values kept, its own reverse pass
+    (`ReplayedSceneTerm`: written out where it applies, else autodiff's)."""
+    from bundledyn._term import for_replay
+
+    term = bd.SceneTerm(scene)
+    y = term.encode(0.0, state)
+
+    def field(i, y, term):  # the twist as a 4×4 matrix, so that the loop can feed it back
+        xi, xdot = term.body_vf(0.0, y, None)
+        return bd.lie.se3_hat(xi), xdot
+
+    replayed = for_replay(term, term.body_vf(0.0, y, None))
+    return loop_sampler(vjp_unit(ft.partial(field, term=replayed)), y, calls)
+
+
 def gradient_units(scene, state, t1, rtol):
     """Part 5c: samplers of where the gradient's time goes, per call in compiled loops
     (`loop_sampler`): the body field the RKMK stages evaluate (`bd.SceneTerm.body_vf`), one

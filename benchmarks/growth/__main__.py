@@ -1,0 +1,3 @@
+from benchmarks.growth.cli import main
+
+raise SystemExit(main())
