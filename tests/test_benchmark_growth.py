@@ -1,9 +1,11 @@
 """The growth benchmark stays alive and times the fields it checked: every member's metric
-equals MuJoCo's mass matrix to 1e-12 and its recursive field the dense one, values and VJPs,
-to 1e-10 (timings are never asserted)."""
+equals MuJoCo's mass matrix to 1e-12, and its recursive field the dense one within the
+rounding their solves carry, the mass matrix's condition number times epsilon (ten times
+that for the VJPs, which solve with the metric twice); timings are never asserted."""
 
 import json
 
+import numpy as np
 import pytest
 
 from benchmarks._output import RESULTS
@@ -15,7 +17,13 @@ pytest.importorskip("mujoco")
 
 
 def _checked(member):
-    return member["metric_error"] < 1e-12 and max(member["agreement"].values()) < 1e-10
+    rounding = member["condition"] * np.finfo(float).eps
+    agreement = member["agreement"]
+    return (
+        member["metric_error"] < 1e-12
+        and agreement["field"] <= rounding
+        and agreement["vjp"] <= 10 * rounding
+    )
 
 
 @pytest.mark.slow

@@ -25,6 +25,14 @@ def depth(model) -> int:
     return int(levels.max())
 
 
+def condition(model, data) -> float:
+    """The condition number of MuJoCo's mass matrix at `data`'s state: the two fields'
+    solves of it carry rounding of about this times the machine's epsilon."""
+    M = np.zeros((model.nv, model.nv))
+    mujoco.mj_fullM(model, data, M)
+    return float(np.linalg.cond(M))
+
+
 def _times(scene, state, model, data, repeats):
     dense = bd.Scene(scene.system, scene.effects, algorithm=bd.DenseField())
     samplers = {
@@ -38,8 +46,8 @@ def _times(scene, state, model, data, repeats):
 
 
 def member_run(member: Member, repeats: int, t1: float) -> dict:
-    """`{"label", "kind", "bodies", "dofs", "depth", "metric_error", "agreement", "times",
-    "gradient"}`: times in seconds (`summary` of each), `gradient` as `gradient_cost`'s
+    """`{"label", "kind", "bodies", "dofs", "depth", "condition", "metric_error", "agreement",
+    "times", "gradient"}`: times in seconds (`summary` of each), `gradient` as `gradient_cost`'s
     (None above `GRADIENT_MOST_DOFS`)."""
     scene = bd.Scene(bd.Multibody.from_mjcf(member.xml))
     model = mujoco_model(member, 1e-2)
@@ -55,6 +63,7 @@ def member_run(member: Member, repeats: int, t1: float) -> dict:
         "bodies": member.bodies,
         "dofs": int(model.nv),
         "depth": depth(model),
+        "condition": condition(model, data),
         "metric_error": error,
         "agreement": agreed,
         "times": times,

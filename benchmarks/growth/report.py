@@ -107,7 +107,8 @@ def _member_row(m):
     t = m["times"]
     agreed = m["agreement"]
     return (
-        f"| {m['label']} | {m['dofs']} | {m['depth']} | {m['metric_error']:.1e} | "
+        f"| {m['label']} | {m['dofs']} | {m['depth']} | {m['condition']:.1e} | "
+        f"{m['metric_error']:.1e} | "
         f"{agreed['field']:.1e} / {agreed['vjp']:.1e} | {fmt(t['field'], 1e6)} | "
         f"{fmt(t['dense'], 1e6)} | {fmt(t['mj_forward'], 1e6)} | "
         f"{_ratio(m, 'field', 'mj_forward'):.2f} | {_ratio(m, 'field_vjp', 'field'):.2f} | "
@@ -127,7 +128,7 @@ def markdown(report):
         f"compiled loop, {report['repeats']} rounds in alternation, median (min–max). Before "
         "timing, each member's metric is compared with MuJoCo's mass matrix (`mj_fullM`) and "
         "its recursive field with the dense one (values, and VJPs at one cotangent, each "
-        "relative to the largest entry). Gradients: `jax.grad` of the survey's loss "
+        "relative to the largest entry; the mass matrix's condition number beside them). Gradients: `jax.grad` of the survey's loss "
         f"(`benchmarks/survey/gradient.py`) over {report['horizon']} s, over the forward "
         "solve timed in alternation with it.",
         "",
@@ -150,10 +151,10 @@ def markdown(report):
         "",
         "## Every member (µs per evaluation)",
         "",
-        "| model | DoF | depth | metric vs mj_fullM | recursive vs dense (field / VJP) | field | "
+        "| model | DoF | depth | cond(M) | metric vs mj_fullM | recursive vs dense (field / VJP) | field | "
         "dense field | mj_forward | field / mj_forward | VJP / field | grad / forward | "
         "forward [ms] |",
-        "|---|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|",
+        "|---|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|",
         *map(_member_row, members),
         "",
     ]
