@@ -33,12 +33,13 @@ def _ratio(member, numerator, denominator):
 
 
 def _row(name, values, target):
-    """A target's row: median and worst (with its member) of `(value, label)`s."""
+    """A target's row: median and worst (with its member) of `(value, label)`s, the worst
+    judged as shown, to two decimals."""
     if not values:
         return f"| {name} | – | – | – | {target} | – |"
     worst, label = max(values)
     median = statistics.median(v for v, _ in values)
-    met = "yes" if worst <= target else "no"
+    met = "yes" if round(worst, 2) <= target else "no"
     return f"| {name} | {median:.2f} | {worst:.2f} | {label} | {target:g} | {met} |"
 
 
