@@ -28,7 +28,7 @@ from . import lie
 from ._linalg import matmul, spd_inverse_6x6, spd_solve
 from ._systems._base import AbstractSystem
 
-__all__ = ["body_field_vjp"]
+__all__ = ["body_field_vjp", "driven_field_vjp"]
 
 
 def _blocks(system: AbstractSystem, q):
@@ -127,3 +127,56 @@ def body_field_vjp(
         - matmul(A.T, xi_total)
     )
     return q_bar, xi_total, qdot_bar, rest
+
+
+def driven_field_vjp(
+    system: AbstractSystem,
+    q: Float[Array, " d"],
+    xi: Float[Array, "6"],
+    xi_dot: Float[Array, "6"],
+    qdot: Float[Array, " d"],
+    qddot: Float[Array, " d"],
+    qddot_bar: Float[Array, " d"],
+    forces_vjp: Callable,
+):
+    r"""The VJP of the driven shape equation $(q, \dot q)\mapsto\ddot q$ when the section
+    frame's motion $(\xi, \dot\xi)$ is given (a fixed or moving base), written out as
+    `body_field_vjp` is: the shape rows of the reference form (seed 004, (2.7) with the base's
+    motion known), $M\ddot q + B^T\dot\xi = \tfrac12 v^T\partial_q G\,v -
+    ((\partial_{\dot q}G)v)_q + Q_H$ with $v = [\xi; \dot q]$.
+
+    By the implicit function theorem the cotangent $\bar{\ddot q}$ becomes
+    $\mu = M^{-1}\bar{\ddot q}$ on $Q_H$ and the gradient of
+    $S = \tfrac12 v^T(\partial_\mu G)v - m^T(\partial_{\dot q}G)v - m^TGa + \mu\cdot Q_H$
+    on $(q, \dot q)$ at fixed $a = [\dot\xi; \ddot q]$, where $m = [0; \mu]$.
+
+    **Arguments:**
+
+    - `system`: a system with a shape, $d > 0$.
+    - `q`, `qdot`: the shape and its velocity; `xi`, `xi_dot`: the frame's given twist and
+      its rate (a uniform field's acceleration taken off $\dot\xi$, Theorem 3.4, where
+      `forces_vjp` leaves it out); `qddot`: the equation's solution there.
+    - `qddot_bar`: the cotangent on $\ddot q$.
+    - `forces_vjp`: the forces' reverse pass: given the cotangent $\mu$ of $Q_H$, returns
+      the cotangents $(\bar q, \bar{\dot q})$ of its inputs.
+
+    **Returns:**
+
+    $(\bar q, \bar{\dot q})$.
+    """
+    jet = system.metric_jet(q)
+
+    def jet_along(u):  # traced only by a jet without closed-form second derivatives
+        return jax.jvp(system.metric_jet, (q,), (u,))[1]
+
+    mu = spd_solve(jet.metric[6:, 6:], qddot_bar)
+    m = jnp.concatenate([jnp.zeros(6, mu.dtype), mu])
+    v = jnp.concatenate([xi, qdot])
+    a = jnp.concatenate([xi_dot, qddot])
+    along_qdot, T = jet.along_both(qdot, jnp.stack([m, v]), jet_along)
+    along_mu, T_mu = jet.along_both(mu, v[None], jet_along)
+    F = jet.forms(jnp.stack([m, v, a]))
+    q_forces, qdot_forces = forces_vjp(mu)
+    q_bar = q_forces + 0.5 * T_mu[0, 0] - T[0, 1] - F[0, 2]
+    qdot_bar = qdot_forces + along_mu[0, 6:] - along_qdot[0, 6:] - F[0, 1]
+    return q_bar, qdot_bar

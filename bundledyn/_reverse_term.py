@@ -9,11 +9,12 @@ nested in a `custom_jvp` rule cannot be transposed. So the custom reverse pass i
 reverse sweep, steps the terms' reverse-mode variants there (`for_reverse_mode`), and the
 forward solve, forward mode and every other adjoint keep the plain field.
 
-The VJP is the written-out pass (`body_field_vjp`) where it covers the scene and costs less
-(`written_out`): a dense field, or the recursions' on a small tree, on `FreeShapeMode`'s
-layout $x = [q, U, \dot q]$ in the Galilean frame. Elsewhere it is autodiff's VJP of the
-field, evaluated again at the state: the articulated-body recursions' transposed pass grows
-with the bodies, where the written-out pass goes through the dense metric.
+The VJP is a written-out pass where it covers the scene and costs less (`written_out`): a
+dense field, or the recursions' on a small tree, on `FreeShapeMode`'s layout
+$x = [q, U, \dot q]$ in the Galilean frame (`body_field_vjp`) or `PrescribedBaseMode`'s
+$x = [q, \dot q]$ (`driven_field_vjp`). Elsewhere it is autodiff's VJP of the field,
+evaluated again at the state: the articulated-body recursions' transposed pass grows with
+the bodies, where the written-out passes go through the dense metric.
 """
 
 import equinox as eqx
@@ -22,10 +23,10 @@ import jax.numpy as jnp
 import jax.tree_util as jtu
 from jax.ad_checkpoint import checkpoint_name
 
-from ._dynamics_vjp import body_field_vjp
+from ._dynamics_vjp import body_field_vjp, driven_field_vjp
 from ._effects import Kinematics, total_force, uniform_fields
 from ._linalg import matmul
-from ._modes import DenseField, FreeShapeMode
+from ._modes import DenseField, FreeShapeMode, PrescribedBaseMode
 from ._scene import Scene
 
 __all__ = ["KEPT_FIELD_OUTPUTS", "replayed_field", "reverse_mode_field", "written_out"]
@@ -37,24 +38,28 @@ whose reverse pass needs only its inputs and outputs (a `jax.custom_vjp`, as
 `ReverseModeSceneTerm`'s) names them so, and its stage is then evaluated once, not twice."""
 
 
-# Where the written-out pass through the dense metric stops costing less than autodiff's
-# transpose of the articulated-body recursions: their gradients take the same time on
-# dm_control's 56-coordinate CMU humanoid (benchmarks/README.md).
+# Where the written-out passes through the dense metric stop costing less than autodiff's
+# transpose of the articulated-body recursions: a floating base's gradients take the same
+# time both ways on dm_control's 56-coordinate CMU humanoid; a held base's still cost less
+# written out on the largest held model measured, dm_control's 85-coordinate dog
+# (benchmarks/README.md).
 _WRITTEN_OUT_MOST_COORDINATES = 56
+_WRITTEN_OUT_MOST_DRIVEN_COORDINATES = 85
 
 
 def written_out(scene: Scene) -> bool:
-    """Whether the field's VJP is the written-out pass (`body_field_vjp`): a floating base and
-    a free shape (`FreeShapeMode`) in the Galilean frame, with the dense field or at most
-    `_WRITTEN_OUT_MOST_COORDINATES` shape coordinates."""
-    return (
-        isinstance(scene.mode, FreeShapeMode)
-        and scene.frame is None
-        and (
-            isinstance(scene.algorithm, DenseField)
-            or scene.system.shape_dim <= _WRITTEN_OUT_MOST_COORDINATES
-        )
-    )
+    """Whether the field's VJP is written out: `body_field_vjp` for a floating base and a
+    free shape (`FreeShapeMode`) in the Galilean frame, `driven_field_vjp` for a prescribed
+    base (`PrescribedBaseMode`); with the dense field, or at most
+    `_WRITTEN_OUT_MOST_COORDINATES` (`_WRITTEN_OUT_MOST_DRIVEN_COORDINATES`) shape
+    coordinates."""
+    if isinstance(scene.mode, PrescribedBaseMode):
+        most = _WRITTEN_OUT_MOST_DRIVEN_COORDINATES
+    elif isinstance(scene.mode, FreeShapeMode) and scene.frame is None:
+        most = _WRITTEN_OUT_MOST_COORDINATES
+    else:
+        return False
+    return isinstance(scene.algorithm, DenseField) or scene.system.shape_dim <= most
 
 
 def _field(scene: Scene, t, y):
@@ -118,6 +123,33 @@ def _state_vjp(scene, y, t, out, cotangents):
     return g_bar, jnp.concatenate([q_bar, U_bar, qdot_bar + xdot_bar[:d]])
 
 
+def _driven_state_vjp(scene, y, t, out, cotangents):
+    r"""The cotangent on the state `y = (g, [q, \dot q])` of a prescribed base's field
+    outputs `out`, by `driven_field_vjp`. The base's motion depends on $t$ alone, so the
+    carried pose and the output twist pass nothing back; a uniform field is taken as the
+    base's acceleration away from it (Theorem 3.4), as in `_state_vjp`."""
+    g, x = y
+    d = scene.system.shape_dim
+    q, qdot = x[:d], x[d:]
+    xdot_bar = cotangents[1]
+    pose, xi, xi_dot = scene.mode.motion.at(t)
+    gamma, others = uniform_fields(scene.effects)
+    if gamma is not None:
+        gamma_b = matmul(pose[:3, :3].T, gamma.astype(q.dtype))
+        xi_dot = xi_dot - jnp.concatenate([jnp.zeros(3, q.dtype), gamma_b])
+
+    def forces_vjp(mu):
+        def shape_force(q, qdot):
+            return total_force(others, scene.system, Kinematics(t, pose, q, xi, qdot))[1]
+
+        return jax.vjp(shape_force, q, qdot)[1](mu)
+
+    q_bar, qdot_bar = driven_field_vjp(
+        scene.system, q, xi, xi_dot, qdot, out[1][d:], xdot_bar[d:], forces_vjp
+    )
+    return jnp.zeros_like(g), jnp.concatenate([q_bar, qdot_bar + xdot_bar[:d]])
+
+
 def _field_vjp(out, grad_out, perturbed, scene__y, t):
     """The cotangents on `(scene, y)` of the field's outputs `out` at `(scene, y)`."""
     scene, y = scene__y
@@ -130,7 +162,8 @@ def _field_vjp(out, grad_out, perturbed, scene__y, t):
         return vjp(cotangents)
     unperturbed = eqx.filter(scene, lambda _: False)
     if written_out(scene):
-        return unperturbed, _state_vjp(scene, y, t, out, cotangents)
+        state_vjp = _driven_state_vjp if isinstance(scene.mode, PrescribedBaseMode) else _state_vjp
+        return unperturbed, state_vjp(scene, y, t, out, cotangents)
     _, vjp = jax.vjp(lambda y: _field(scene, t, y), y)
     return unperturbed, vjp(cotangents)[0]
 

@@ -254,10 +254,11 @@ class ReverseModeSceneTerm(AbstractSceneTerm):
     r"""`SceneTerm` with the field's reverse pass as a custom VJP (`_reverse_term.py`): the
     same field and codec, for reverse mode only (it has no forward-mode derivative).
 
-    The VJP is written out (`body_field_vjp`) for a floating base and a free shape in the
-    Galilean frame, through the dense metric, where that costs less than autodiff's
-    transpose of the field (the dense field, or a tree of at most 56 shape coordinates);
-    elsewhere it is autodiff's VJP of the field evaluated again. Either way it needs only
+    The VJP is written out through the dense metric for a floating base and a free shape in
+    the Galilean frame (`body_field_vjp`) and for a prescribed base (`driven_field_vjp`),
+    where that costs less than autodiff's transpose of the field (the dense field, or a
+    tree of at most 56 shape coordinates); elsewhere it is autodiff's VJP of the field
+    evaluated again. Either way it needs only
     the field's inputs and outputs, so the adjoint can replay the values
     (`ReplayedSceneTerm`).
 

@@ -15,7 +15,11 @@ import bundledyn as bd
 from bundledyn._dynamics import reference_accelerations
 from bundledyn._effects import Kinematics
 from bundledyn._geometry import connection
-from bundledyn._reverse_term import _WRITTEN_OUT_MOST_COORDINATES, written_out
+from bundledyn._reverse_term import (
+    _WRITTEN_OUT_MOST_COORDINATES,
+    _WRITTEN_OUT_MOST_DRIVEN_COORDINATES,
+    written_out,
+)
 from bundledyn._systems._ball_chart import ball_columns
 from bundledyn._term import (
     ReplayedSceneTerm,
@@ -224,14 +228,18 @@ def test_every_scene_is_swapped_and_the_pass_is_written_out_where_it_applies():
     held = bd.Scene(five.system, five.effects, base=bd.PrescribedBase.fixed())
     long_chain = chain(37)
     floating_long = bd.Scene(long_chain)
+    longer_chain = chain(60)
+    held_long = bd.Scene(longer_chain, base=bd.PrescribedBase.fixed())
+    held_mid = bd.Scene(long_chain, base=bd.PrescribedBase.fixed())
     dense_long = bd.Scene(long_chain, algorithm=bd.DenseField())
     for scene in (five, rigid, framed, held, floating_long):
         assert isinstance(for_reverse_mode(bd.SceneTerm(scene)), ReverseModeSceneTerm)
         values = (jnp.zeros(6), jnp.zeros(2 * scene.system.shape_dim + 6))
         assert isinstance(for_replay(bd.SceneTerm(scene), values), ReplayedSceneTerm)
     assert long_chain.shape_dim > _WRITTEN_OUT_MOST_COORDINATES >= five.system.shape_dim
-    assert written_out(five) and written_out(dense_long)
-    assert not any(map(written_out, (rigid, framed, held, floating_long)))
+    assert longer_chain.shape_dim > _WRITTEN_OUT_MOST_DRIVEN_COORDINATES >= long_chain.shape_dim
+    assert all(map(written_out, (five, held, held_mid, dense_long)))
+    assert not any(map(written_out, (rigid, framed, floating_long, held_long)))
 
 
 def test_the_replayed_field_gives_its_values_back_with_the_fields_reverse_pass():
@@ -263,17 +271,43 @@ def test_the_replayed_field_gives_its_values_back_with_the_fields_reverse_pass()
         np.testing.assert_allclose(np.asarray(a), np.asarray(b), rtol=0, atol=1e-12 * scale)
 
 
-@pytest.mark.parametrize("where", ["held base", "falling frame"])
-def test_where_the_pass_is_not_written_out_it_is_the_fields_own_vjp(where):
-    # The reverse-mode and replayed terms of scenes the written-out pass does not cover
-    # transpose the field by autodiff: their cotangents on the state equal the plain field's
-    # Jacobian (forward mode, which goes through no custom VJP) contracted with the cotangent.
+def _swaying(t):
+    """A base moving like a ship's deck: turning and accelerating at every instant."""
+    return bd.lie.se3_exp(
+        jnp.array([0.3, -0.2, 0.5, 0.1, 0.0, -0.1]) * t
+        + jnp.array([0.4, 0.1, -0.3, 0.2, -0.5, 0.3]) * jnp.sin(2.0 * t)
+    )
+
+
+_NOT_ITS_OWN = {  # scene -> whether its reverse pass is written out
+    "held base": True,
+    "moving base": True,
+    "moving base, five bodies, dense field": True,
+    "falling frame": False,
+}
+
+
+@pytest.mark.parametrize("where", list(_NOT_ITS_OWN))
+def test_the_reverse_mode_fields_cotangents_are_the_plain_fields(where):
+    # The reverse-mode and replayed terms of scenes beside the floating base's (tested
+    # above): a prescribed base's written-out pass (`driven_field_vjp`), and autodiff's VJP
+    # of the field elsewhere. Their cotangents on the state equal the plain field's Jacobian
+    # (forward mode, which goes through no custom VJP) contracted with the cotangent.
     two = _scene("chain2")  # the smallest chain: the test is about the wiring, not the tree
-    if where == "held base":
-        scene = bd.Scene(two.system, two.effects, base=bd.PrescribedBase.fixed())
-    else:
-        scene = bd.Scene(two.system, two.effects, frame=bd.FreeFalling(9.81, (0.0, 0.0, -1.0)))
-    assert not written_out(scene)
+    scene = {
+        "held base": lambda: bd.Scene(two.system, two.effects, base=bd.PrescribedBase.fixed()),
+        "moving base": lambda: bd.Scene(two.system, two.effects, base=bd.PrescribedBase(_swaying)),
+        "moving base, five bodies, dense field": lambda: bd.Scene(
+            _scene("chain5").system,
+            _scene("chain5").effects,
+            base=bd.PrescribedBase(_swaying),
+            algorithm=bd.DenseField(),
+        ),
+        "falling frame": lambda: bd.Scene(
+            two.system, two.effects, frame=bd.FreeFalling(9.81, (0.0, 0.0, -1.0))
+        ),
+    }[where]()
+    assert written_out(scene) == _NOT_ITS_OWN[where]
     term = bd.SceneTerm(scene)
     d = scene.system.shape_dim
     k = jax.random.split(jax.random.PRNGKey(8), 3)
