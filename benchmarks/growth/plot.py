@@ -1,6 +1,8 @@
 """The growth benchmark's diagram: each time against the bodies, log–log, with a line of
 slope 1 through the smallest trees' field."""
 
+from benchmarks._figures import pyplot
+
 FIGURE = "growth.png"
 SERIES = (("field", "field (recursions)"), ("dense", "dense field"), ("mj_forward", "mj_forward"))
 MARKERS = {"hinge": "o", "mixed": "s"}
@@ -8,13 +10,8 @@ MARKERS = {"hinge": "o", "mixed": "s"}
 
 def draw(report, out):
     """`growth.png` in `out`, named in `report["figure"]` (None without matplotlib)."""
-    try:
-        import matplotlib
-
-        matplotlib.use("Agg")
-        import matplotlib.pyplot as plt
-    except ImportError:
-        print("  matplotlib is not installed: no diagram (pip install '.[viz]')")
+    plt = pyplot()
+    if plt is None:
         report["figure"] = None
         return
     members = report["members"]

@@ -3,6 +3,8 @@ log–log, with the issue's limits as lines."""
 
 import math
 
+from benchmarks._figures import pyplot
+
 FIGURE = "survey.png"
 # (key, what, limit): the ratios drawn, read off an entry by `ratios`.
 SERIES = (
@@ -25,13 +27,8 @@ def ratios(entry) -> dict:
 
 def draw(report, out):
     """`survey.png` in `out`, named in `report["figure"]` (None without matplotlib)."""
-    try:
-        import matplotlib
-
-        matplotlib.use("Agg")
-        import matplotlib.pyplot as plt
-    except ImportError:
-        print("  matplotlib is not installed: no diagram (pip install '.[viz]')")
+    plt = pyplot()
+    if plt is None:
         report["figure"] = None
         return
     imported = [m for m in report["models"] if m["status"] == "imported"]
