@@ -82,6 +82,12 @@ def _materialized(ct, like):
     return jnp.zeros_like(like) if ct is None else ct
 
 
+def _field_twist(gamma, pose, dtype):
+    r"""$(0, R^T\gamma)$: a uniform field's acceleration as a twist in the section's axes."""
+    gamma_b = matmul(pose[:3, :3].T, gamma.astype(dtype))
+    return jnp.concatenate([jnp.zeros(3, dtype), gamma_b])
+
+
 def _state_vjp(scene, y, t, out, cotangents):
     r"""The cotangent on the state `y = (g, x)` of the field's outputs `out`, by
     `body_field_vjp`.
@@ -97,8 +103,7 @@ def _state_vjp(scene, y, t, out, cotangents):
     Udot, qddot = out[1][d : d + 6], out[1][d + 6 :]
     gamma, others = uniform_fields(scene.effects)
     if gamma is not None:
-        gamma = gamma.astype(q.dtype)
-        Udot = Udot - jnp.concatenate([jnp.zeros(3, q.dtype), matmul(g[:3, :3].T, gamma)])
+        Udot = Udot - _field_twist(gamma, g, q.dtype)
 
     def forces_vjp(mu_xi, mu_q):
         def forces(g, q, xi, qdot):
@@ -119,15 +124,15 @@ def _state_vjp(scene, y, t, out, cotangents):
         forces_vjp,
     )
     if gamma is not None:  # ∂/∂R of Ū̇_v·Rᵀγ = γ Ū̇_vᵀ
-        g_bar = g_bar.at[:3, :3].add(jnp.outer(gamma, xdot_bar[d + 3 : d + 6]))
+        g_bar = g_bar.at[:3, :3].add(jnp.outer(gamma.astype(q.dtype), xdot_bar[d + 3 : d + 6]))
     return g_bar, jnp.concatenate([q_bar, U_bar, qdot_bar + xdot_bar[:d]])
 
 
 def _driven_state_vjp(scene, y, t, out, cotangents):
     r"""The cotangent on the state `y = (g, [q, \dot q])` of a prescribed base's field
     outputs `out`, by `driven_field_vjp`. The base's motion depends on $t$ alone, so the
-    carried pose and the output twist pass nothing back; a uniform field is taken as the
-    base's acceleration away from it (Theorem 3.4), as in `_state_vjp`."""
+    carried pose and the output twist pass nothing back; a uniform field is taken off the
+    base's acceleration (Theorem 3.4) instead of entering as forces, as in `_state_vjp`."""
     g, x = y
     d = scene.system.shape_dim
     q, qdot = x[:d], x[d:]
@@ -135,8 +140,7 @@ def _driven_state_vjp(scene, y, t, out, cotangents):
     pose, xi, xi_dot = scene.mode.motion.at(t)
     gamma, others = uniform_fields(scene.effects)
     if gamma is not None:
-        gamma_b = matmul(pose[:3, :3].T, gamma.astype(q.dtype))
-        xi_dot = xi_dot - jnp.concatenate([jnp.zeros(3, q.dtype), gamma_b])
+        xi_dot = xi_dot - _field_twist(gamma, pose, q.dtype)
 
     def forces_vjp(mu):
         def shape_force(q, qdot):
