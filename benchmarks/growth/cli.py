@@ -12,6 +12,7 @@ HORIZON = 0.2  # seconds of motion under the gradient, as the survey's for its l
 
 def measure(quick, repeats):
     """Every member, in order, in a report."""
+    from benchmarks.accuracy_cost.sweep import default_solver
     from benchmarks.family.cli import one_core
     from benchmarks.growth.measure import member_run
     from benchmarks.growth.members import members
@@ -19,7 +20,9 @@ def measure(quick, repeats):
     one_core()
     t1 = 0.05 if quick else HORIZON
     repeats = 2 if quick else repeats
-    report = report_header(PACKAGES, quick, repeats=repeats, horizon=t1, members=[])
+    report = report_header(
+        PACKAGES, quick, repeats=repeats, horizon=t1, solver=default_solver().__name__, members=[]
+    )
     for member in members(quick):
         entry = member_run(member, repeats, t1)
         report["members"].append(entry)

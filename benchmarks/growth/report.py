@@ -130,8 +130,9 @@ def markdown(report):
         "timing, each member's metric is compared with MuJoCo's mass matrix (`mj_fullM`) and "
         "its recursive field with the dense one (values, and VJPs at one cotangent, each "
         "relative to the largest entry; the mass matrix's condition number beside them). Gradients: `jax.grad` of the survey's loss "
-        f"(`benchmarks/survey/gradient.py`) over {report['horizon']} s, over the forward "
-        "solve timed in alternation with it.",
+        f"(`benchmarks/survey/gradient.py`) over {report['horizon']} s with `simulate`'s "
+        f"default solver ({report['solver']}) and adjoint, over the forward solve timed in "
+        "alternation with it.",
         "",
         "## Targets: median and worst case over the members",
         "",
