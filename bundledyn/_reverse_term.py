@@ -9,12 +9,13 @@ nested in a `custom_jvp` rule cannot be transposed. So the custom reverse pass i
 reverse sweep, steps the terms' reverse-mode variants there (`for_reverse_mode`), and the
 forward solve, forward mode and every other adjoint keep the plain field.
 
-The VJP is a written-out pass where it covers the scene and costs less (`written_out`): a
-dense field, or the recursions' on a small tree, on `FreeShapeMode`'s layout
-$x = [q, U, \dot q]$ in the Galilean frame (`body_field_vjp`) or `PrescribedBaseMode`'s
-$x = [q, \dot q]$ (`driven_field_vjp`). Elsewhere it is autodiff's VJP of the field,
-evaluated again at the state: the articulated-body recursions' transposed pass grows with
-the bodies, where the written-out passes go through the dense metric.
+The VJP is written out on `FreeShapeMode`'s layout $x = [q, U, \dot q]$ in the Galilean
+frame and on `PrescribedBaseMode`'s $x = [q, \dot q]$ (`_state_pass`): through the dense
+metric (`_dynamics_vjp`) for a dense field or a small tree, where its few large kernels
+cost least; by the articulated-body recursions (`_recursive_dynamics_vjp`) on a large tree
+whose field is theirs, where the dense metric's work grows with the square of the bodies.
+Elsewhere (a rigid body, a moving frame) it is autodiff's VJP of the field, evaluated again
+at the state.
 """
 
 import equinox as eqx
@@ -26,7 +27,7 @@ from jax.ad_checkpoint import checkpoint_name
 from ._dynamics_vjp import body_field_vjp, driven_field_vjp
 from ._effects import Kinematics, total_force, uniform_fields
 from ._linalg import matmul
-from ._modes import DenseField, FreeShapeMode, PrescribedBaseMode
+from ._modes import ArticulatedBodyField, FreeShapeMode, PrescribedBaseMode
 from ._scene import Scene
 
 __all__ = ["KEPT_FIELD_OUTPUTS", "replayed_field", "reverse_mode_field", "written_out"]
@@ -38,28 +39,37 @@ whose reverse pass needs only its inputs and outputs (a `jax.custom_vjp`, as
 `ReverseModeSceneTerm`'s) names them so, and its stage is then evaluated once, not twice."""
 
 
-# Where the written-out passes through the dense metric stop costing less than autodiff's
-# transpose of the articulated-body recursions: a floating base's gradients take the same
-# time both ways on dm_control's 56-coordinate CMU humanoid; a held base's still cost less
-# written out on the largest held model measured, dm_control's 85-coordinate dog
-# (benchmarks/README.md).
-_WRITTEN_OUT_MOST_COORDINATES = 56
-_WRITTEN_OUT_MOST_DRIVEN_COORDINATES = 85
+# Where the pass through the dense metric stops costing less than the recursions': measured
+# on dm_control's models and on chains, the recursions' worst case (benchmarks/README.md). A
+# floating base's VJPs cost about the same on the 56-coordinate CMU humanoid, and the
+# recursions' less on the 73-coordinate dog_v2; a held base's cost less through the metric
+# on the 85-coordinate dog and on chains up to 127 coordinates.
+_DENSE_MOST_COORDINATES = 56
+_DENSE_MOST_DRIVEN_COORDINATES = 127
+
+
+def _state_pass(scene: Scene):
+    """The written-out VJP on the state of `scene`'s field, or None where autodiff's VJP
+    of the field is taken: through the dense metric (`body_field_vjp`, `driven_field_vjp`)
+    for a floating base and a free shape (`FreeShapeMode`) in the Galilean frame or a
+    prescribed base (`PrescribedBaseMode`), by the articulated-body recursions where the
+    scene's field is theirs and the shape has more than `_DENSE_MOST_COORDINATES`
+    (`_DENSE_MOST_DRIVEN_COORDINATES`) coordinates."""
+    if isinstance(scene.mode, PrescribedBaseMode):
+        dense, articulated = _driven_state_vjp, _articulated_driven_state_vjp
+        most = _DENSE_MOST_DRIVEN_COORDINATES
+    elif isinstance(scene.mode, FreeShapeMode) and scene.frame is None:
+        dense, articulated, most = _state_vjp, _articulated_state_vjp, _DENSE_MOST_COORDINATES
+    else:
+        return None
+    if isinstance(scene.algorithm, ArticulatedBodyField) and scene.system.shape_dim > most:
+        return articulated
+    return dense
 
 
 def written_out(scene: Scene) -> bool:
-    """Whether the field's VJP is written out: `body_field_vjp` for a floating base and a
-    free shape (`FreeShapeMode`) in the Galilean frame, `driven_field_vjp` for a prescribed
-    base (`PrescribedBaseMode`); with the dense field, or at most
-    `_WRITTEN_OUT_MOST_COORDINATES` (`_WRITTEN_OUT_MOST_DRIVEN_COORDINATES`) shape
-    coordinates."""
-    if isinstance(scene.mode, PrescribedBaseMode):
-        most = _WRITTEN_OUT_MOST_DRIVEN_COORDINATES
-    elif isinstance(scene.mode, FreeShapeMode) and scene.frame is None:
-        most = _WRITTEN_OUT_MOST_COORDINATES
-    else:
-        return False
-    return isinstance(scene.algorithm, DenseField) or scene.system.shape_dim <= most
+    """Whether the field's VJP on the state is written out (`_state_pass`)."""
+    return _state_pass(scene) is not None
 
 
 def _field(scene: Scene, t, y):
@@ -154,6 +164,33 @@ def _driven_state_vjp(scene, y, t, out, cotangents):
     return jnp.zeros_like(g), jnp.concatenate([q_bar, qdot_bar + xdot_bar[:d]])
 
 
+def _articulated_state_vjp(scene, y, t, out, cotangents):
+    r"""The cotangent on the state `y = (g, [q, U, \dot q])` of a floating base's
+    articulated-body field outputs `out` (`ArticulatedBodyField.floating_vjp`)."""
+    g, x = y
+    d = scene.system.shape_dim
+    xi_bar, xdot_bar = cotangents
+    g_bar, q_bar, U_bar, qdot_bar = scene.algorithm.floating_vjp(
+        scene, t, g, x[:d], x[d : d + 6], x[d + 6 :], out[1][d + 6 :],
+        (xi_bar, xdot_bar[d : d + 6], xdot_bar[d + 6 :]),
+    )  # fmt: skip
+    return g_bar, jnp.concatenate([q_bar, U_bar, qdot_bar + xdot_bar[:d]])
+
+
+def _articulated_driven_state_vjp(scene, y, t, out, cotangents):
+    r"""The cotangent on the state `y = (g, [q, \dot q])` of a prescribed base's
+    articulated-body field outputs `out` (`ArticulatedBodyField.driven_vjp`); the carried
+    pose and the output twist pass nothing back, as in `_driven_state_vjp`."""
+    g, x = y
+    d = scene.system.shape_dim
+    xdot_bar = cotangents[1]
+    pose, xi, xi_dot = scene.mode.motion.at(t)
+    q_bar, qdot_bar = scene.algorithm.driven_vjp(
+        scene, t, pose, x[:d], xi, xi_dot, x[d:], out[1][d:], xdot_bar[d:]
+    )
+    return jnp.zeros_like(g), jnp.concatenate([q_bar, qdot_bar + xdot_bar[:d]])
+
+
 def _field_vjp(out, grad_out, perturbed, scene__y, t):
     """The cotangents on `(scene, y)` of the field's outputs `out` at `(scene, y)`."""
     scene, y = scene__y
@@ -165,9 +202,9 @@ def _field_vjp(out, grad_out, perturbed, scene__y, t):
         _, vjp = jax.vjp(lambda scene, y: _field(scene, t, y), scene, y)
         return vjp(cotangents)
     unperturbed = eqx.filter(scene, lambda _: False)
-    if written_out(scene):
-        state_vjp = _driven_state_vjp if isinstance(scene.mode, PrescribedBaseMode) else _state_vjp
-        return unperturbed, state_vjp(scene, y, t, out, cotangents)
+    state_pass = _state_pass(scene)
+    if state_pass is not None:
+        return unperturbed, state_pass(scene, y, t, out, cotangents)
     _, vjp = jax.vjp(lambda y: _field(scene, t, y), y)
     return unperturbed, vjp(cotangents)[0]
 

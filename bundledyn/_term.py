@@ -254,10 +254,10 @@ class ReverseModeSceneTerm(AbstractSceneTerm):
     r"""`SceneTerm` with the field's reverse pass as a custom VJP (`_reverse_term.py`): the
     same field and codec, for reverse mode only (it has no forward-mode derivative).
 
-    The VJP is written out through the dense metric for a floating base and a free shape in
-    the Galilean frame (`body_field_vjp`) and for a prescribed base (`driven_field_vjp`),
-    where that costs less than autodiff's transpose of the field (the dense field, or a
-    tree of at most 56 shape coordinates); elsewhere it is autodiff's VJP of the field
+    The VJP is written out for a floating base and a free shape in the Galilean frame and
+    for a prescribed base: through the dense metric (`body_field_vjp`, `driven_field_vjp`)
+    with the dense field or on a small tree, by the articulated-body recursions
+    (`_recursive_dynamics_vjp`) on a large one; elsewhere it is autodiff's VJP of the field
     evaluated again. Either way it needs only
     the field's inputs and outputs, so the adjoint can replay the values
     (`ReplayedSceneTerm`).

@@ -15,6 +15,7 @@ from registry import ADJOINTS, SOLVERS
 from systems import asymmetric_body, chain
 
 import bundledyn as bd
+from bundledyn import _reverse_term
 from bundledyn._simulate import default_adjoint
 
 T1 = 1.0
@@ -202,6 +203,21 @@ def test_with_the_scene_held_constant_gradients_equal_the_references(case, optio
     params = _params(case)
     (expected, _), steps = _gradient(case, reference, options)(params)
     _assert_gradients_equal(_twist_gradient(case, STORED, options)(params[0]), (expected, steps))
+
+
+def test_the_recursions_reverse_pass_gives_the_forward_mode_gradient(monkeypatch):
+    # On large trees the reverse sweep differentiates the field by the articulated-body
+    # recursions' written-out pass (`_reverse_term._state_pass`); with the dense pass's
+    # threshold lowered, the chain takes it. (That pass at single states:
+    # tests/test_field_vjp.py.)
+    monkeypatch.setattr(_reverse_term, "_DENSE_MOST_COORDINATES", 0)
+    case, options = "chain, effects", "RKMK4 ts"
+    scene = CASES[case]()[0]
+    assert _reverse_term._state_pass(scene) is _reverse_term._articulated_state_vjp
+    params = _params(case)
+    (expected, _), steps = _gradient(case, FORWARD, options)(params)
+    ours = _twist_gradient.__wrapped__(case, STORED, options)(params[0])  # traced here
+    _assert_gradients_equal(ours, (expected, steps))
 
 
 def test_a_derivative_in_the_horizon_is_refused_naming_the_adjoint_that_gives_it():

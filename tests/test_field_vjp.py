@@ -16,8 +16,14 @@ from bundledyn._dynamics import reference_accelerations
 from bundledyn._effects import Kinematics
 from bundledyn._geometry import connection
 from bundledyn._reverse_term import (
-    _WRITTEN_OUT_MOST_COORDINATES,
-    _WRITTEN_OUT_MOST_DRIVEN_COORDINATES,
+    _DENSE_MOST_COORDINATES,
+    _DENSE_MOST_DRIVEN_COORDINATES,
+    _articulated_driven_state_vjp,
+    _articulated_state_vjp,
+    _driven_state_vjp,
+    _field,
+    _state_pass,
+    _state_vjp,
     written_out,
 )
 from bundledyn._systems._ball_chart import ball_columns
@@ -177,21 +183,60 @@ def _on_tangents(cotangent, value):
     return cotangent
 
 
+def _assert_same_cotangents(ours, reference, values):
+    ours, reference, values = (jax.tree.leaves(x) for x in (ours, reference, values))
+    assert len(ours) == len(reference) == len(values)
+    for a, b, value in zip(ours, reference, values, strict=True):
+        a, b = _on_tangents(a, value), _on_tangents(b, value)
+        assert np.all(np.isfinite(np.asarray(a)))
+        scale = max(float(jnp.max(jnp.abs(b), initial=0.0)), 1.0)
+        np.testing.assert_allclose(np.asarray(a), np.asarray(b), rtol=0, atol=1e-10 * scale)
+
+
 @pytest.mark.parametrize("name, kind", CASES)
 def test_reverse_pass_equals_autodiff_of_the_reference_form(name, kind):
     if kind in ("zero shape", "ball near pi"):
         assert ball_columns(SYSTEMS[name]()).size > 0  # the singular point is there
     vjps, primals = _pullbacks(name, kind)
     for both in {both for _, both in vjps}:
-        ours = jax.tree.leaves(vjps["_reverse_field", both])
-        reference = jax.tree.leaves(vjps["_reference_field", both])
-        values = jax.tree.leaves(primals if both else primals[1])
-        assert len(ours) == len(reference) == len(values)
-        for a, b, value in zip(ours, reference, values, strict=True):
-            a, b = _on_tangents(a, value), _on_tangents(b, value)
-            assert np.all(np.isfinite(np.asarray(a)))
-            scale = max(float(jnp.max(jnp.abs(b), initial=0.0)), 1.0)
-            np.testing.assert_allclose(np.asarray(a), np.asarray(b), rtol=0, atol=1e-10 * scale)
+        _assert_same_cotangents(
+            vjps["_reverse_field", both],
+            vjps["_reference_field", both],
+            primals if both else primals[1],
+        )
+
+
+@functools.cache
+def _articulated_pullback(name):
+    """The articulated-body recursions' written-out VJP on the state (`_state_pass` takes it
+    on large trees only), at the plain field's values."""
+    scene = _scene(name)
+    assert isinstance(scene.algorithm, bd.ArticulatedBodyField)
+
+    def run(y, cotangent):
+        return (_articulated_state_vjp(scene, y, 0.3, _field(scene, 0.3, y), cotangent),)
+
+    return jax.jit(run)
+
+
+ARTICULATED = [  # the cases whose system's default field is the recursions'
+    case
+    for case in CASES
+    if isinstance(bd.Scene(SYSTEMS[jax.tree.leaves(case)[0]]()).algorithm, bd.ArticulatedBodyField)
+]
+
+
+@pytest.mark.parametrize("name, kind", ARTICULATED)
+def test_the_articulated_reverse_pass_equals_autodiff_of_the_reference_form(name, kind):
+    scene = _scene(name)
+    y = _state(scene.system, kind, jax.random.PRNGKey(3))
+    cotangent = _cotangent(scene.system)
+    params = eqx.filter(scene, eqx.is_inexact_array)
+    _assert_same_cotangents(
+        _articulated_pullback(name)(y, cotangent),
+        _reference_pullback(name, False)(params, y, cotangent),
+        y,
+    )
 
 
 @pytest.mark.parametrize("name", SHAPED)
@@ -228,7 +273,7 @@ def test_every_scene_is_swapped_and_the_pass_is_written_out_where_it_applies():
     held = bd.Scene(five.system, five.effects, base=bd.PrescribedBase.fixed())
     long_chain = chain(37)
     floating_long = bd.Scene(long_chain)
-    longer_chain = chain(60)
+    longer_chain = chain(90)
     held_long = bd.Scene(longer_chain, base=bd.PrescribedBase.fixed())
     held_mid = bd.Scene(long_chain, base=bd.PrescribedBase.fixed())
     dense_long = bd.Scene(long_chain, algorithm=bd.DenseField())
@@ -236,10 +281,19 @@ def test_every_scene_is_swapped_and_the_pass_is_written_out_where_it_applies():
         assert isinstance(for_reverse_mode(bd.SceneTerm(scene)), ReverseModeSceneTerm)
         values = (jnp.zeros(6), jnp.zeros(2 * scene.system.shape_dim + 6))
         assert isinstance(for_replay(bd.SceneTerm(scene), values), ReplayedSceneTerm)
-    assert long_chain.shape_dim > _WRITTEN_OUT_MOST_COORDINATES >= five.system.shape_dim
-    assert longer_chain.shape_dim > _WRITTEN_OUT_MOST_DRIVEN_COORDINATES >= long_chain.shape_dim
-    assert all(map(written_out, (five, held, held_mid, dense_long)))
-    assert not any(map(written_out, (rigid, framed, floating_long, held_long)))
+    assert long_chain.shape_dim > _DENSE_MOST_COORDINATES >= five.system.shape_dim
+    assert longer_chain.shape_dim > _DENSE_MOST_DRIVEN_COORDINATES >= long_chain.shape_dim
+    assert [_state_pass(s) for s in (five, dense_long, floating_long)] == [
+        _state_vjp,
+        _state_vjp,
+        _articulated_state_vjp,
+    ]
+    assert [_state_pass(s) for s in (held, held_mid, held_long)] == [
+        _driven_state_vjp,
+        _driven_state_vjp,
+        _articulated_driven_state_vjp,
+    ]
+    assert not any(map(written_out, (rigid, framed)))
 
 
 def test_the_replayed_field_gives_its_values_back_with_the_fields_reverse_pass():
@@ -283,6 +337,7 @@ _NOT_ITS_OWN = {  # scene -> whether its reverse pass is written out
     "held base": True,
     "moving base": True,
     "moving base, five bodies, dense field": True,
+    "moving base, a tree": True,
     "falling frame": False,
 }
 
@@ -292,7 +347,9 @@ def test_the_reverse_mode_fields_cotangents_are_the_plain_fields(where):
     # The reverse-mode and replayed terms of scenes beside the floating base's (tested
     # above): a prescribed base's written-out pass (`driven_field_vjp`), and autodiff's VJP
     # of the field elsewhere. Their cotangents on the state equal the plain field's Jacobian
-    # (forward mode, which goes through no custom VJP) contracted with the cotangent.
+    # (forward mode, which goes through no custom VJP) contracted with the cotangent; on a
+    # prescribed base so do the articulated-body recursions' (which `_state_pass` takes on
+    # large trees only), on a tree with every joint kind.
     two = _scene("chain2")  # the smallest chain: the test is about the wiring, not the tree
     scene = {
         "held base": lambda: bd.Scene(two.system, two.effects, base=bd.PrescribedBase.fixed()),
@@ -302,6 +359,9 @@ def test_the_reverse_mode_fields_cotangents_are_the_plain_fields(where):
             _scene("chain5").effects,
             base=bd.PrescribedBase(_swaying),
             algorithm=bd.DenseField(),
+        ),
+        "moving base, a tree": lambda: bd.Scene(
+            _scene("tree4").system, _scene("tree4").effects, base=bd.PrescribedBase(_swaying)
         ),
         "falling frame": lambda: bd.Scene(
             two.system, two.effects, frame=bd.FreeFalling(9.81, (0.0, 0.0, -1.0))
@@ -335,6 +395,10 @@ def test_the_reverse_mode_fields_cotangents_are_the_plain_fields(where):
             jax.vjp(lambda y, t=t: t.body_vf(0.4, y, None), y)[1](cotangent)[0]
             for t in (ReverseModeSceneTerm(scene), ReplayedSceneTerm(scene, values))
         ]
+        if isinstance(scene.mode, bd.PrescribedBaseMode) and isinstance(
+            scene.algorithm, bd.ArticulatedBodyField
+        ):
+            ours.append(_articulated_driven_state_vjp(scene, y, 0.4, values, cotangent))
         return expected, ours
 
     expected, ours = cotangents(y)

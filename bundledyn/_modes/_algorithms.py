@@ -21,7 +21,9 @@ from .._systems._recursive_dynamics import (
     driven_accelerations,
     floating_accelerations,
     tree_motion,
+    uniform_field_twist,
 )
+from .._systems._recursive_dynamics_vjp import driven_field_vjp, floating_field_vjp
 
 __all__ = ["AbstractFieldAlgorithm", "ArticulatedBodyField", "DenseField", "default_algorithm"]
 
@@ -129,6 +131,30 @@ class ArticulatedBodyField(AbstractFieldAlgorithm):
         gamma, _, Q = _field_and_forces(scene, Kinematics(t, g, q, xi, qdot))
         motion = tree_motion(scene.system, q, qdot)
         return driven_accelerations(scene.system, motion, xi, xi_dot, Q, gamma)
+
+    def floating_vjp(self, scene, t, g, q, U, qdot, qddot, cotangents):
+        r"""The VJP of `floating` at its inputs, given its $\ddot q$ there
+        (`floating_field_vjp`): cotangents $(\bar\xi, \bar{\dot U}, \bar{\ddot q})$ to
+        $(\bar g, \bar q, \bar U, \bar{\dot q})$."""
+
+        def forces(pose, q, xi, qdot):
+            gamma, F, Q = _field_and_forces(scene, Kinematics(t, pose, q, xi, qdot))
+            return F, Q, uniform_field_twist(gamma, U.dtype)
+
+        return floating_field_vjp(scene.system, g, q, U, qdot, qddot, cotangents, forces)
+
+    def driven_vjp(self, scene, t, g, q, xi, xi_dot, qdot, qddot, qddot_bar):
+        r"""The VJP of `driven` in $(q, \dot q)$, given its $\ddot q$ there
+        (`driven_field_vjp`): $\bar{\ddot q}$ to $(\bar q, \bar{\dot q})$."""
+
+        def shape_force(q, qdot):
+            return _field_and_forces(scene, Kinematics(t, g, q, xi, qdot))[2]
+
+        gamma, _, _ = _field_and_forces(scene, Kinematics(t, g, q, xi, qdot))
+        base_acceleration = xi_dot - uniform_field_twist(gamma, xi_dot.dtype)
+        return driven_field_vjp(
+            scene.system, q, qdot, xi, base_acceleration, qddot, qddot_bar, shape_force
+        )
 
 
 def default_algorithm(system) -> AbstractFieldAlgorithm:

@@ -106,8 +106,8 @@ class StoredStepsAdjoint(diffrax.AbstractAdjoint):
     - `field_reverse`: how each step's VJP passes through a scene's field:
       `"hand-derived"` (default), the field's own reverse pass (`ReverseModeSceneTerm`:
       written out for a floating base and a free shape in the Galilean frame, and for a
-      prescribed base, where that costs less, elsewhere autodiff's VJP of the field), or `"autodiff"`, which transposes
-      each step's stages, field included. The same gradients either way. The field's own
+      prescribed base, elsewhere autodiff's VJP of the field), or `"autodiff"`, which
+      transposes each step's stages, field included. The same gradients either way. The field's own
       pass needs only the field's inputs and outputs, so the reverse sweep replays the
       field's values (above) instead of evaluating the stages again; the gradient then
       takes less time than with `"autodiff"`.

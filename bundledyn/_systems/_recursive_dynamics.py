@@ -42,12 +42,20 @@ from ._multibody import Multibody
 from ._tree import Tree
 
 __all__ = [
+    "NodeMotion",
     "TreeMotion",
+    "at_bodies",
     "body_twist",
     "covers",
     "driven_accelerations",
     "floating_accelerations",
+    "locked_rate",
+    "metric_solve",
+    "node_motion",
+    "node_path_sums",
+    "node_twists",
     "tree_motion",
+    "uniform_field_twist",
 ]
 
 _WIDTH = {"fixed": 0, "screw": 1, "ball": 3}
@@ -226,6 +234,89 @@ def _ball_drift(system: Multibody, q, qdot, T, ball_nodes):
     return jnp.concatenate([w, jnp.cross(centre, w)], axis=-1)
 
 
+class NodeMotion(NamedTuple):
+    r"""`TreeMotion`'s quantities joint factor by joint factor (node by node), which the
+    reverse pass's path sums need (`_recursive_dynamics_vjp`).
+
+    **Fields:** `inertias` and `columns` as `TreeMotion`'s; per node, `relative`
+    $W_k = \sum_{j\preceq k} x_j$, `own` $x_k$ and `drift`, `(m, 6)`.
+    """
+
+    inertias: Float[Array, "n 6 6"]
+    columns: Float[Array, "6 d"]
+    relative: Float[Array, "m 6"]
+    own: Float[Array, "m 6"]
+    drift: Float[Array, "m 6"]
+
+
+@functools.cache
+def _node_columns(tables: Tree) -> np.ndarray:
+    """Each node's shape coordinates, padded with $d$."""
+    return _padded(
+        [
+            [tables.q_start[k] + i for i in range(_WIDTH[kind])]
+            for k, kind in enumerate(tables.kinds)
+        ],
+        tables.shape_dim,
+    )
+
+
+def node_twists(system, columns, u):
+    r"""$x_k = Z_k u_k$: each node's own twist at the shape velocity (or any shape vector)
+    $u$, `(m, 6)`, for the joint columns $Z$ `(6, d)` of `system`'s tree."""
+    return _per_row((columns * u[None, :]).T, _node_columns(system.tables))
+
+
+def node_path_sums(system, x):
+    r"""$\sum_{j\preceq k} x_j$ over each node's path from the root, `(m, 6)`."""
+    return _path_sums(x, _levels(system.tables, system.parents).node_parents)
+
+
+def node_motion(system, q: Float[Array, " d"], qdot: Float[Array, " d"]) -> NodeMotion:
+    r"""The bodies' inertias, the joint columns, and each node's relative twist, own twist and
+    drift at $(q, \dot q)$ (`NodeMotion`).
+
+    **Arguments:**
+
+    - `system`: a `Multibody` (section at the base; anything else is a `ValueError`).
+    - `q`, `qdot`: the shape and its velocity, `(d,)`.
+
+    **Returns:**
+
+    A `NodeMotion`.
+    """
+    tree = _checked_tree(system)
+    t = tree.tables
+    levels = _levels(t, tree.parents)
+    T, screw_nodes, ball_nodes, Jr = tree._node_poses(q)
+    Z = tree._shape_columns(T, screw_nodes, ball_nodes, Jr)
+    inertias = tree._section_inertias(take(T, t.body_last))
+    own = node_twists(tree, Z, qdot)
+    relative = _path_sums(own, levels.node_parents)
+    parent_twists = take(jnp.concatenate([relative, jnp.zeros_like(own[:1])]), levels.node_parents)
+    drift = lie.bracket(parent_twists, own)
+    if len(ball_nodes):
+        ball_rows = np.full(len(t.kinds), len(ball_nodes))
+        ball_rows[ball_nodes] = np.arange(len(ball_nodes))
+        balls = _ball_drift(tree, q, qdot, T, ball_nodes)
+        drift = drift + take(jnp.concatenate([balls, jnp.zeros_like(balls[:1])]), ball_rows)
+    return NodeMotion(inertias, Z, relative, own, drift)
+
+
+def at_bodies(system, motion: NodeMotion) -> TreeMotion:
+    """The `TreeMotion` of a `NodeMotion`: each body's relative twist at its last node, its
+    joint's twist and drift summed over its nodes."""
+    t = system.tables
+    body_nodes = _levels(t, system.parents).body_nodes
+    return TreeMotion(
+        motion.inertias,
+        take(motion.relative, t.body_last),
+        _per_row(motion.own, body_nodes),
+        _per_row(motion.drift, body_nodes),
+        motion.columns,
+    )
+
+
 def tree_motion(system, q: Float[Array, " d"], qdot: Float[Array, " d"]) -> TreeMotion:
     r"""The bodies' inertias, relative twists and joint drifts at $(q, \dot q)$ (`TreeMotion`).
 
@@ -238,32 +329,7 @@ def tree_motion(system, q: Float[Array, " d"], qdot: Float[Array, " d"]) -> Tree
 
     A `TreeMotion`.
     """
-    tree = _checked_tree(system)
-    t = tree.tables
-    levels = _levels(t, tree.parents)
-    T, screw_nodes, ball_nodes, Jr = tree._node_poses(q)
-    Z = tree._shape_columns(T, screw_nodes, ball_nodes, Jr)
-    inertias = tree._section_inertias(take(T, t.body_last))
-    node_columns = _padded(
-        [[t.q_start[k] + i for i in range(_WIDTH[kind])] for k, kind in enumerate(t.kinds)],
-        t.shape_dim,
-    )
-    own = _per_row((Z * qdot[None, :]).T, node_columns)  # each node's own twist x_k
-    relative = _path_sums(own, levels.node_parents)
-    parent_twists = take(jnp.concatenate([relative, jnp.zeros_like(own[:1])]), levels.node_parents)
-    drift = lie.bracket(parent_twists, own)
-    if len(ball_nodes):
-        ball_rows = np.full(len(t.kinds), len(ball_nodes))
-        ball_rows[ball_nodes] = np.arange(len(ball_nodes))
-        balls = _ball_drift(tree, q, qdot, T, ball_nodes)
-        drift = drift + take(jnp.concatenate([balls, jnp.zeros_like(balls[:1])]), ball_rows)
-    return TreeMotion(
-        inertias,
-        take(relative, t.body_last),
-        _per_row(own, levels.body_nodes),
-        _per_row(drift, levels.body_nodes),
-        Z,
-    )
+    return at_bodies(system, node_motion(system, q, qdot))
 
 
 def body_twist(motion: TreeMotion, U: Float[Array, "6"]) -> Float[Array, "6"]:
@@ -439,8 +505,9 @@ def _from_the_root(levels: _Levels, joints, drift, A0):
     return take(jnp.concatenate(solved), levels.solved)
 
 
-def _field_twist(gravity, dtype):
-    r"""$(0, \gamma_b)$: a uniform field's acceleration as a twist, zero without one."""
+def uniform_field_twist(gravity, dtype) -> Float[Array, "6"]:
+    r"""$(0, \gamma_b)$: a uniform field's acceleration $\gamma_b$ `(3,)` as a twist, zero
+    without one (`gravity` None)."""
     if gravity is None:
         return jnp.zeros(6, dtype)
     return jnp.concatenate([jnp.zeros(3, dtype), gravity.astype(dtype)])
@@ -472,7 +539,7 @@ def driven_accelerations(
     levels = _levels(system.tables, system.parents)
     base_inertia, base_bias, bodies = _level_order(system, motion, xi, shape_force, levels)
     joints, _, _ = _from_the_leaves(levels, base_inertia, base_bias, bodies)
-    A0 = xi_dot - _field_twist(gravity, xi_dot.dtype)
+    A0 = xi_dot - uniform_field_twist(gravity, xi_dot.dtype)
     return _from_the_root(levels, joints, bodies.drift, A0)
 
 
@@ -504,16 +571,57 @@ def floating_accelerations(
     base_inertia, base_bias, bodies = _level_order(system, motion, xi, shape_force, levels)
     joints, IA0, pA0 = _from_the_leaves(levels, base_inertia, base_bias, bodies)
     qddot = _from_the_root(levels, joints, bodies.drift, spd_solve(IA0, wrench - pA0))
-    Udot = _locked_rate(motion, U, xi, wrench) + _field_twist(gravity, U.dtype)
+    Udot = locked_rate(motion, U, xi, wrench) + uniform_field_twist(gravity, U.dtype)
     return Udot, qddot
 
 
-def _locked_rate(motion: TreeMotion, U, xi, wrench):
+def locked_rate(motion: TreeMotion, U, xi, wrench) -> Float[Array, "6"]:
     r"""$\dot U = I_r^{-1}\big(F_b - \operatorname{ad}^*_\xi I_rU - (\partial_{\dot q}I_r)U\big)$,
-    the rate of the total momentum $I_rU$ less the turning of $I_r$ (module docstring)."""
+    the rate of the total momentum $I_rU$ less the turning of $I_r$ (module docstring), a
+    uniform field's acceleration left out.
+
+    **Arguments:**
+
+    - `motion`: the tree's `TreeMotion`; `U`: the locked velocity; `xi`: the section frame's
+      twist, `body_twist(motion, U)`; `wrench`: $F_b$.
+
+    **Returns:**
+
+    $\dot U$, `(6,)`.
+    """
     M, W = motion.inertias, motion.relative
     I_r = jnp.sum(M, axis=0)
     MU = einsum("aij,j->ai", M, U)
     turning = einsum("aij,aj->ai", M, lie.bracket(W, U[None, :])) - lie.coad_action(W, MU)
     rhs = wrench - lie.coad_action(xi, matmul(I_r, U)) + jnp.sum(turning, axis=0)
     return matmul(spd_inverse_6x6(I_r), rhs)
+
+
+def metric_solve(system, inertias, columns, shape_rhs, *, floating: bool):
+    r"""$G^{-1}[0; b]$ by the articulated-body passes at rest: the accelerations that the
+    shape forces $b$ alone give the tree at rest, a metric solve in $O(n)$ work.
+
+    The passes of `floating_accelerations` (`driven_accelerations` with the base held)
+    with no velocity, drift, bias or base wrench, so that $G\,a = [0; b]$ with
+    $a = [\mathcal A_0; \ddot q]$ (the base's $\mathcal A_0 = 0$ when held).
+
+    **Arguments:**
+
+    - `system`: the `Multibody`; `inertias`, `columns`: its bodies' `TreeMotion.inertias`
+      and joint columns $Z$ at the shape.
+    - `shape_rhs`: $b$, `(d,)`.
+    - `floating`: whether the base is free (else held).
+
+    **Returns:**
+
+    `(base, shape)`: $\mathcal A_0$ `(6,)` and the shape part `(d,)`.
+    """
+    levels = _levels(system.tables, system.parents)
+    zero = jnp.zeros((inertias.shape[0], 6), shape_rhs.dtype)
+    at_rest = TreeMotion(inertias, zero, zero, zero, columns)
+    base_inertia, base_bias, bodies = _level_order(
+        system, at_rest, jnp.zeros(6, shape_rhs.dtype), shape_rhs, levels
+    )
+    joints, IA0, pA0 = _from_the_leaves(levels, base_inertia, base_bias, bodies)
+    base = spd_solve(IA0, -pA0) if floating else jnp.zeros(6, shape_rhs.dtype)
+    return base, _from_the_root(levels, joints, bodies.drift, base)
