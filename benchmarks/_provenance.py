@@ -6,6 +6,7 @@ Every results JSON carries `provenance()` under "provenance" and `environment(..
 """
 
 import datetime
+import hashlib
 import importlib.metadata as md
 import os
 import pathlib
@@ -51,16 +52,29 @@ def machine():
     return f"{cpu}, {cores} core{'' if cores == 1 else 's'}"
 
 
+def code_hash():
+    """A SHA-1 of the committed code (`CODE`'s files at `HEAD`, by their blob hashes): equal
+    between two commits exactly where neither the package, the benchmarks nor
+    pyproject.toml changed; None outside a checkout."""
+    listing = _git("ls-tree", "-r", "HEAD", "--", *(path for path in CODE if ":" not in path))
+    if listing is None:
+        return None
+    excluded = tuple(f"\t{path.split(')', 1)[1]}/" for path in CODE if path.startswith(":("))
+    kept = [line for line in listing.splitlines() if not any(e in line for e in excluded)]
+    return hashlib.sha1("\n".join(kept).encode()).hexdigest()
+
+
 def provenance():
-    """`{"bundledyn", "commit", "dirty", "date", "machine"}`: bundledyn's version, `git
-    rev-parse HEAD` (None outside a checkout), whether tracked files of the code differ
-    from that commit (`CODE`: the package, the benchmarks, pyproject.toml), and when and
-    where."""
+    """`{"bundledyn", "commit", "code", "dirty", "date", "machine"}`: bundledyn's version,
+    `git rev-parse HEAD` (None outside a checkout), `code_hash()`, whether tracked files
+    of the code differ from that commit (`CODE`: the package, the benchmarks,
+    pyproject.toml), and when and where."""
     commit = _git("rev-parse", "HEAD")
     changes = _git("status", "--porcelain", "--untracked-files=no", "--", *CODE)
     return {
         "bundledyn": _version("bundledyn"),
         "commit": commit,
+        "code": code_hash(),
         "dirty": None if commit is None or changes is None else bool(changes),
         "date": now(),
         "machine": machine(),

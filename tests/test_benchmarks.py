@@ -445,3 +445,39 @@ def test_the_devices_benchmark_spreads_the_batch_as_one_device_runs_it(tmp_path)
         method = entry["methods"]["RKMK87"]
         assert method["difference_from_one_device"] < 1e-9 and method["lockstep_overhead"] >= 1
         assert entry["methods"]["MuJoCo"]["rollouts_per_second"] > 0
+
+
+def test_identification_parts_merge_only_where_they_measured_this_code(tmp_path):
+    """`--merge` joins the parts of a run split case by case (`parts.py`) into the report
+    a run in one piece writes: the cases in order, the family summarized, each part's
+    commit listed; a part of other code, or run with other settings, is refused by name."""
+    from benchmarks import identification
+    from benchmarks._provenance import code_hash
+    from benchmarks.identification import parts
+
+    whole = json.loads((RESULTS / "identification.json").read_text())
+    settings = {key: whole.get(key) for key in parts.SETTINGS}
+    for name in ("tumble", "chain"):  # written out of order
+        part = {key: value for key, value in whole.items() if key not in ("cases", "seconds")}
+        part["provenance"] = whole["provenance"] | {"code": code_hash(), "dirty": False}
+        part["cases"] = {name: whole["cases"][name] | {"seconds": 10.0}}
+        parts.write(tmp_path, name, part)
+    assert parts.current(tmp_path, "chain", settings)
+    assert not parts.current(tmp_path, "chain", settings | {"seeds": 5})
+    assert not parts.current(tmp_path, "arm", settings)
+    report = identification.main(["--merge", "--out", str(tmp_path)])
+    assert list(report["cases"]) == ["chain", "tumble"]
+    assert report["seconds"] == 20.0
+    assert report["cases"]["chain"]["summary"] == whole["cases"]["chain"]["summary"]
+    text = (tmp_path / "identification.md").read_text()
+    assert "Merged from 2 parts" in text and f"`{whole['provenance']['commit'][:12]}`" in text
+
+    stale = json.loads(parts.path(tmp_path, "tumble").read_text())
+    stale["provenance"]["code"] = "another"
+    parts.path(tmp_path, "tumble").write_text(json.dumps(stale))
+    with pytest.raises(SystemExit, match=r"\['tumble'\] measured other code"):
+        identification.main(["--merge", "--out", str(tmp_path)])
+    stale["provenance"]["code"], stale["seeds"] = code_hash(), 7
+    parts.path(tmp_path, "tumble").write_text(json.dumps(stale))
+    with pytest.raises(SystemExit, match=r"\['tumble'\] were run with other settings"):
+        identification.main(["--merge", "--out", str(tmp_path)])

@@ -34,6 +34,13 @@ Usage, from the repository root::
     python -m benchmarks.identification                # writes results/identification.{json,md}
     python -m benchmarks.identification --quick        # the tumbling body, one seed, to a temp dir
     python -m benchmarks.identification --report-only  # redraw the markdown from the JSON
+    python -m benchmarks.identification --part --cases tree0,arm1  # a case per results file
+    python -m benchmarks.identification --merge        # the parts into results/identification
+
+The whole family takes hours on two cores: `--part` keeps each case in
+`results/identification_parts/` as it finishes and skips cases whose part measured this
+code, so a run can be spread over sittings; `--merge` writes the report once every part
+measured the same code (`parts.py`).
 """
 
 from benchmarks.identification.cli import main
