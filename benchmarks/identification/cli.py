@@ -80,7 +80,7 @@ def measure(args, out):
     report = report_header(PACKAGES, args.quick, **settings, cases={})
     began = time.perf_counter()
     for name in names:
-        if args.part and parts.current(out, name, settings):
+        if args.part and parts.current(out, name, settings | {"quick": args.quick}):
             print(f"{name}: its part measured this code; kept", flush=True)
             continue
         report["cases"][name] = _run(cases[name], args.quick, settings)
