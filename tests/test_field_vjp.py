@@ -339,7 +339,6 @@ _NOT_ITS_OWN = {  # scene -> whether its reverse pass is written out
     "held base": True,
     "moving base": True,
     "moving base, five bodies, dense field": True,
-    "moving base, a tree": True,
     "falling frame": False,
 }
 
@@ -351,7 +350,7 @@ def test_the_reverse_mode_fields_cotangents_are_the_plain_fields(where):
     # of the field elsewhere. Their cotangents on the state equal the plain field's Jacobian
     # (forward mode, which goes through no custom VJP) contracted with the cotangent; on a
     # prescribed base so do the articulated-body recursions' (which `_state_pass` takes on
-    # large trees only), on a tree with every joint kind.
+    # large trees only), at the same values (the two fields agree to rounding).
     two = _scene("chain2")  # the smallest chain: the test is about the wiring, not the tree
     scene = {
         "held base": lambda: bd.Scene(two.system, two.effects, base=bd.PrescribedBase.fixed()),
@@ -361,9 +360,6 @@ def test_the_reverse_mode_fields_cotangents_are_the_plain_fields(where):
             _scene("chain5").effects,
             base=bd.PrescribedBase(_swaying),
             algorithm=bd.DenseField(),
-        ),
-        "moving base, a tree": lambda: bd.Scene(
-            _scene("tree4").system, _scene("tree4").effects, base=bd.PrescribedBase(_swaying)
         ),
         "falling frame": lambda: bd.Scene(
             two.system, two.effects, frame=bd.FreeFalling(9.81, (0.0, 0.0, -1.0))
@@ -397,10 +393,9 @@ def test_the_reverse_mode_fields_cotangents_are_the_plain_fields(where):
             jax.vjp(lambda y, t=t: t.body_vf(0.4, y, None), y)[1](cotangent)[0]
             for t in (ReverseModeSceneTerm(scene), ReplayedSceneTerm(scene, values))
         ]
-        if isinstance(scene.mode, bd.PrescribedBaseMode) and isinstance(
-            scene.algorithm, bd.ArticulatedBodyField
-        ):
-            ours.append(_articulated_driven_state_vjp(scene, y, 0.4, values, cotangent))
+        if isinstance(scene.mode, bd.PrescribedBaseMode):
+            recursions = eqx.tree_at(lambda s: s.algorithm, scene, bd.ArticulatedBodyField())
+            ours.append(_articulated_driven_state_vjp(recursions, y, 0.4, values, cotangent))
         return expected, ours
 
     expected, ours = cotangents(y)
