@@ -170,11 +170,11 @@ def test_rotor_inertia_and_damping_are_positive_parameters_of_the_scene():
         identify.Parameters(zero, joint_constants=("armature",))
 
 
-def test_the_fits_gradient_is_finite_and_equals_finite_differences():
-    """The exact forward-mode Jacobian the fit uses gives the merit's gradient JᵀR + CᵀC in
-    every parameter (and window state), at the nominal start of the noise-free fit, equal to
-    central differences of the merit to 1e-6 relative."""
-    from bundledyn._identify._fit import _evaluate, _residuals, _window_starts
+@functools.cache
+def _nominal_start():
+    """The noise-free fit's shooting problem, gauge, measured window states and decision
+    vector at the nominal parameters."""
+    from bundledyn._identify._fit import _window_starts
     from bundledyn._identify._shooting import ShootingProblem
 
     truth, result = noise_free_fit()
@@ -184,7 +184,32 @@ def test_the_fits_gradient_is_finite_and_equals_finite_differences():
     windows = identify.Windows(count=4)
     references, states = _window_starts(windows, parameters, data, data.states)
     problem = ShootingProblem(parameters, inputs.effects(), data, windows, references)
-    z = jnp.concatenate([parameters.initial(), states.reshape(-1)])
+    return problem, gauge, states, jnp.concatenate([parameters.initial(), states.reshape(-1)])
+
+
+def test_a_continuation_stage_starts_from_the_last_stages_evaluation_reweighted():
+    """The evaluation a stage of looser continuity ends with, reweighted (`_reweighted`),
+    is the tighter stage's own evaluation at the same point, to rounding: the stage's first
+    Jacobian need not be computed."""
+    from bundledyn._identify._data import level
+    from bundledyn._identify._fit import _evaluate, _reweighted
+
+    problem, gauge, states, z = _nominal_start()
+    looser = eqx.tree_at(lambda p: p.windows.continuity, problem, level(0.1))
+    reweighted = _reweighted(_evaluate(looser, gauge, states, z), looser, problem)
+    for mine, theirs in zip(reweighted, _evaluate(problem, gauge, states, z), strict=True):
+        assert np.abs(theirs).max() > 0
+        np.testing.assert_allclose(mine, theirs, rtol=1e-13, atol=1e-13 * np.abs(theirs).max())
+
+
+def test_the_fits_gradient_is_finite_and_equals_finite_differences():
+    """The exact forward-mode Jacobian the fit uses gives the merit's gradient JᵀR + CᵀC in
+    every parameter (and window state), at the nominal start of the noise-free fit, equal to
+    central differences of the merit to 1e-6 relative."""
+    from bundledyn._identify._fit import _evaluate, _residuals
+
+    problem, gauge, states, z = _nominal_start()
+    parameters = problem.parameters
     r, J, c, C = _evaluate(problem, gauge, states, z)
     gradient = np.asarray(J.T @ r + C.T @ c)
     assert np.all(np.isfinite(gradient))
@@ -199,33 +224,6 @@ def test_the_fits_gradient_is_finite_and_equals_finite_differences():
         step = jnp.zeros_like(z).at[k].set(h)
         difference = (merit(z + step) - merit(z - step)) / (2 * h)
         assert abs(difference - gradient[k]) < 1e-6 * scale, (k, difference, gradient[k])
-
-
-@pytest.mark.parametrize("rows", [300, 10], ids=["tall", "fewer residuals than variables"])
-def test_the_damped_step_is_the_truncated_singular_value_one_of_the_stacked_jacobian(rows):
-    """Levenberg–Marquardt's step from the triangle of [A | b] equals the one written with
-    the singular value decomposition of the whole stacked A = [J; C] diag(u) (its left
-    vectors formed), at every damping, with an undetermined direction left where it is."""
-    from bundledyn._identify._levenberg_marquardt import _factorization, _step
-
-    rng = np.random.default_rng(rows)
-    n = 40
-    J = rng.normal(size=(rows, n)) * np.logspace(-3, 3, n)
-    J[:, 5] = 0.0  # a direction the data do not determine
-    C, r, c = rng.normal(size=(20, n)), rng.normal(size=rows), rng.normal(size=20)
-    C[:, 5] = 0.0
-    units = rng.uniform(0.5, 2.0, n)
-    A, b = np.concatenate([J, C]) * units, np.concatenate([r, c])
-    W, singular, Vt = np.linalg.svd(A, full_matrices=False)
-    factorization = _factorization(r, J, c, C, units)
-    for damping in (1e-3, 1.0, 1e3):
-        gain = np.where(singular * 10.0 > 1.0, singular / (singular**2 + damping), 0.0)
-        y = -(Vt.T * gain) @ (W.T @ b)
-        model = b + A @ y
-        delta, predicted = _step(factorization, damping, units, 10.0)
-        np.testing.assert_allclose(delta, units * y, rtol=0, atol=1e-12 * np.abs(y).max())
-        np.testing.assert_allclose(predicted, 0.5 * (b @ b - model @ model), rtol=1e-12)
-        assert abs(delta[5]) <= 1e-12 * np.abs(delta).max()  # stays put, to rounding
 
 
 ARM = """

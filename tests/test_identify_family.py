@@ -111,13 +111,13 @@ class _Terminal(io.StringIO):
 )
 def test_the_progress_line_is_shown_when_asked_or_on_a_terminal(show, stream, lines):
     with FitClock() as clock:
-        progress = FitProgress(show, clock, max_steps=50, stream=stream)
+        progress = FitProgress(show, clock, stream=stream)
         progress.update(1, 2, 1, 0.5)
         progress.update(2, 2, 2, 0.25)
         progress.close()
     assert stream.getvalue().count("\n") == lines
     if lines:
-        assert "stage 2/2, step 2/50, cost 2.500000e-01" in stream.getvalue()
+        assert "stage 2/2, step 2, cost 2.500000e-01" in stream.getvalue()
 
 
 def test_on_a_terminal_the_progress_line_is_rewritten_in_place(monkeypatch):
@@ -126,7 +126,7 @@ def test_on_a_terminal_the_progress_line_is_rewritten_in_place(monkeypatch):
     monkeypatch.setattr(_progress, "_QUIET_SECONDS", 0.0)
     stream = _Terminal()
     with FitClock() as clock:
-        progress = FitProgress(None, clock, max_steps=50, stream=stream)
+        progress = FitProgress(None, clock, stream=stream)
         progress.update(1, 1, 1, 0.5)
         progress.update(1, 1, 2, 0.25)
         progress.close()

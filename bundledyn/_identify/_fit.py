@@ -63,7 +63,7 @@ class FitResult:
       stated noise levels are right. A sample two windows share is counted once: its rows
       in the earlier window are zero.
     - `stats`: `evaluations` of the residuals with their Jacobian, `trials` of trial steps
-      (residuals alone), `window_solves` (each window solved once per evaluation or
+      (residuals alone), `chords` of them from an earlier Jacobian, `window_solves` (each window solved once per evaluation or
       trial; an evaluation carries the tangents too), accepted `steps`, whether
       Levenberg–Marquardt `converged`, the `seconds` taken, and where they went:
       `compile_seconds` (JAX tracing, lowering and compiling, wherever it happened),
@@ -244,7 +244,8 @@ def fit(
       is not measured (the windows' unmeasured parts start from the nominal motion).
     - `optimizer`, `optimizer_steps`: an optax optimizer and how many first-order steps it
       takes before Levenberg–Marquardt (with the exact gradient $J^Tr + C^Tc$).
-    - `max_steps`: the most Levenberg–Marquardt trial steps.
+    - `max_steps`: the most Levenberg–Marquardt trial steps from new Jacobians (each may be
+      followed by chord steps, which reuse it and are not counted).
     - `progress`: show the continuation stage, step, merit and time at each accepted
       step: `True` always, `False` never, `None` (default) on a terminal once the fit has
       run a few seconds.
@@ -254,7 +255,7 @@ def fit(
     A `FitResult`.
     """
     with FitClock() as clock:
-        progress_line = FitProgress(progress, clock, max_steps=max_steps)
+        progress_line = FitProgress(progress, clock)
         try:
             result = _fit(
                 parameters, measurements, gauge, inputs, windows, warm_start, initial_state,
@@ -293,6 +294,12 @@ def _default_windows(measurements: Measurements) -> Windows:
         count=max(1, (n - 1) // 20), substeps=max(1, int(np.ceil(fastest / _TURN_PER_STEP)))
     )
 
+
+# Steps from one Jacobian (`levenberg_marquardt`'s `reuse`): a window's Jacobian carries a
+# tangent per parameter and per state coordinate, so it costs as much as tens of trial
+# solves, and a step from the last Jacobian that still achieves half of the reduction it
+# predicts is far cheaper than a new Jacobian.
+_CHORD_STEPS = 3
 
 # The sections of a fit timed apart (`FitResult.stats`).
 _SECTIONS = ("start", "jacobian", "solve")
@@ -341,9 +348,7 @@ def _fit(
         return jnp.concatenate([theta, window_states.reshape(-1)]) if windows.fit_states else theta
 
     z0 = decision(theta0)
-    if start is not None and _merit(evaluate(decision(parameters.initial()))) < _merit(
-        evaluate(z0)
-    ):
+    if start is not None and _merit(trial(decision(parameters.initial()))) < _merit(trial(z0)):
         z0 = decision(parameters.initial())  # the warm start was worse than the nominal values
     z0 = _first_order(evaluate, z0, optimizer, optimizer_steps)
     data_rows = -gauge.residuals(parameters, theta0).shape[0] or None
@@ -374,20 +379,23 @@ def _fit(
             stage = eqx.tree_at(lambda p: p.windows.continuity, problem, level(looser))
             stages.insert(-1, (stage, 1e-4))
             looser /= 10.0
-    costs, evaluations, trials, steps = [], 0, 0, 0
-    solutions = []
+    costs, evaluations, trials, chords, steps = [], 0, 0, 0, 0
+    solutions, previous = [], None
     for stage_number[0], (stage, tolerance) in enumerate(stages, start=1):
         solution = levenberg_marquardt(
             lambda z, stage=stage: evaluate(z, stage),
             lambda z, stage=stage: trial(z, stage),
-            z0, max_steps=max(1, max_steps - trials), ftol=tolerance,
-            units=units[: z0.shape[0]], callback=record,
+            z0, max_steps=max(1, max_steps - (trials - chords)), ftol=tolerance,
+            units=units[: z0.shape[0]], callback=record, reuse=_CHORD_STEPS,
+            start=None if previous is None
+            else _reweighted(solutions[-1].evaluation(), previous, stage),
         )  # fmt: skip
         solutions.append(solution)
-        z0 = solution.z
+        z0, previous = solution.z, stage
         costs += solution.costs
         evaluations += solution.evaluations
-        trials, steps = trials + solution.trials, steps + solution.steps
+        trials, chords = trials + solution.trials, chords + solution.chords
+        steps += solution.steps
     solution = solutions[-1]  # the last stage's, at the measurements' own continuity
     theta, fitted_states = problem.split(solution.z)
     information = theta_information(
@@ -412,6 +420,7 @@ def _fit(
         stats=dict(
             evaluations=evaluations,
             trials=trials,
+            chords=chords,
             window_solves=(evaluations + trials) * windows.count,
             steps=steps,
             converged=solution.converged,
@@ -446,8 +455,18 @@ def _evaluate(
     return jnp.concatenate([r, extra(z[:P])]), jnp.concatenate([J, G]), c, C
 
 
-def _merit(evaluation) -> float:
-    r, _, c, _ = evaluation
+def _reweighted(evaluation: tuple, previous: ShootingProblem, problem: ShootingProblem) -> tuple:
+    r"""`evaluation` `(r, J, c, C)` of `previous` at some $z$, made `problem`'s at the same
+    $z$: the continuity defects and their Jacobian are divided by the continuity level
+    (`ShootingProblem`), which alone changes from stage to stage, so a stage starts without
+    evaluating the Jacobian again."""
+    r, J, c, C = evaluation
+    ratio = previous.windows.continuity / problem.windows.continuity
+    return r, J, c * ratio, C * ratio
+
+
+def _merit(residuals) -> float:
+    r, c = residuals
     merit = 0.5 * float(r @ r + c @ c)
     return merit if np.isfinite(merit) else np.inf
 

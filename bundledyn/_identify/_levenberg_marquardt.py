@@ -18,7 +18,8 @@ small steps or reductions.
 $A$ has many more rows (samples) than columns, and a step needs only $\Sigma$, $V$ and
 $W^Tb$: a QR factorization of $[A \mid b]$ gives $R$ and $Q^Tb$ without forming $Q$, and
 $R = U\Sigma V^T$ (square) gives $W^Tb = U^TQ^Tb$. This is factorized once per Jacobian;
-the trial steps at other dampings reuse it.
+the trial steps at other dampings reuse it, and so may the next steps (chord steps): with
+new residuals $b$, $W^Tb = \Sigma^{-1}V^TA^Tb$ costs a product with $A$, not a Jacobian.
 """
 
 from collections.abc import Callable
@@ -36,9 +37,10 @@ class LevenbergMarquardtResult(NamedTuple):
 
     **Fields:** `z` (the solution); `residuals`, `jacobian`, `defects` and
     `constraint_jacobian` there; `costs` (the merit ½‖r‖² + ½‖c‖² at each accepted
-    iterate, the first at the start); `evaluations` (of $(r, J, c, C)$); `trials` (of the
-    residuals at trial points); `steps` (accepted); `converged` (a stopping test was met
-    before `max_steps` trials).
+    iterate, the first at the start); `evaluations` (of $(r, J, c, C)$, a given `start` not
+    counted); `trials` (of the residuals at trial points), `chords` of them chord steps
+    (from an earlier Jacobian); `steps` (accepted); `converged` (a stopping test was met
+    before `max_steps` trials from new Jacobians).
     """
 
     z: jax.Array
@@ -49,8 +51,13 @@ class LevenbergMarquardtResult(NamedTuple):
     costs: list
     evaluations: int
     trials: int
+    chords: int
     steps: int
     converged: bool
+
+    def evaluation(self) -> tuple:
+        """`(r, J, c, C)` at `z`, as `evaluate(z)` returns them."""
+        return self.residuals, self.jacobian, self.defects, self.constraint_jacobian
 
 
 class _Factorization(NamedTuple):
@@ -77,6 +84,23 @@ def _factorization(r, J, c, C, units):
     return _Factorization(singular, right, left.T @ triangle[:n, n], b @ b)
 
 
+# A step that achieves less than this fraction of the reduction its linear model predicted
+# is followed by a new Jacobian, not a chord step: the model has stopped describing the
+# residuals over a step's length.
+_CHORD_GAIN = 0.5
+
+
+@jax.jit
+def _with_residuals(factorization: _Factorization, r, J, c, C, units) -> _Factorization:
+    r"""`factorization`'s $A$ with new residuals $b$: $W^Tb = \Sigma^{-1}V^TA^Tb$ (zero
+    along null directions, which no step moves along)."""
+    singular, right, _, _ = factorization
+    gradient = units * (J.T @ r + C.T @ c)
+    safe = jnp.where(singular > 0, singular, 1.0)
+    projected = jnp.where(singular > 0, (right @ gradient) / safe, 0.0)
+    return _Factorization(singular, right, projected, r @ r + c @ c)
+
+
 @jax.jit
 def _step(factorization: _Factorization, damping, units, resolution):
     """The damped Gauss–Newton step of the stacked residuals, in the natural units and only
@@ -101,6 +125,8 @@ def levenberg_marquardt(
     units=None,
     resolution: float = 10.0,
     callback: Callable | None = None,
+    start: tuple | None = None,
+    reuse: int = 0,
 ) -> LevenbergMarquardtResult:
     r"""Minimize ½‖r(z)‖² subject to c(z) = 0 with the caller's exact Jacobians.
 
@@ -111,7 +137,7 @@ def levenberg_marquardt(
     - `residuals`: `z -> (r, c)` alone, for trial steps (the Jacobian is evaluated only at
       the steps taken).
     - `z0`: the starting point.
-    - `max_steps`: the most trial steps.
+    - `max_steps`: the most trial steps from new Jacobians (chord steps not counted).
     - `xtol`: stop when a step is below `xtol (‖z‖ + xtol)`.
     - `ftol`: stop when an accepted step reduces the cost by less than `ftol` of it.
     - `units`: each variable's natural unit (default 1): the damping is $\lambda\|\delta/u\|^2$.
@@ -119,6 +145,11 @@ def levenberg_marquardt(
       this many natural units (singular values of $[J; C]\,\mathrm{diag}(u)$ above
       `1/resolution`); the others stay where they start.
     - `callback`: called as `callback(step, z, cost, damping)` after every accepted step.
+    - `reuse`: after an accepted step, take up to this many more steps with the same
+      Jacobian and the new residuals (chord steps, each costing one `residuals` call),
+      while each step achieves at least half the reduction it predicts.
+    - `start`: `evaluate(z0)` when the caller already has it (e.g. from an earlier solve
+      of the same residuals with other weights); it is then not evaluated again.
 
     **Returns:**
 
@@ -126,39 +157,59 @@ def levenberg_marquardt(
     """
     z = jnp.asarray(z0)
     units = jnp.ones_like(z) if units is None else jnp.asarray(units, z.dtype)
-    r, J, c, C = evaluate(z)
+    r, J, c, C = evaluate(z) if start is None else start
     factorization = _factorization(r, J, c, C, units)
     cost = 0.5 * float(factorization.norm)
-    costs, evaluations, trials, steps = [cost], 1, 0, 0
+    costs, evaluations, trials, chords, steps = [cost], int(start is None), 0, 0, 0
     damping, growth, converged = 1e-3, 2.0, False
-    while trials < max_steps:
+    fresh, reused = True, 0  # whether `factorization` is of the Jacobian at `z`; chord steps
+
+    def refresh():
+        nonlocal r, J, c, C, factorization, evaluations, fresh, reused
+        r, J, c, C = evaluate(z)
+        factorization = _factorization(r, J, c, C, units)
+        evaluations, fresh, reused = evaluations + 1, True, 0
+
+    while trials - chords < max_steps:
         delta, predicted = _step(factorization, damping, units, resolution)
         if not np.isfinite(float(predicted)):
             break
         r_new, c_new = residuals(z + delta)
-        trials += 1
+        trials, chords = trials + 1, chords + (not fresh)
         cost_new = 0.5 * float(r_new @ r_new + c_new @ c_new)
         gain = (cost - cost_new) / max(float(predicted), np.finfo(float).tiny)
         small_step = float(jnp.linalg.norm(delta)) <= xtol * (float(jnp.linalg.norm(z)) + xtol)
         if np.isfinite(cost_new) and gain > 1e-4:
-            reduction = cost - cost_new
-            z, cost = z + delta, cost_new
-            r, J, c, C = evaluate(z)
-            factorization = _factorization(r, J, c, C, units)
-            evaluations += 1
+            reduction, stale = cost - cost_new, not fresh
+            z, cost, r, c = z + delta, cost_new, r_new, c_new
             costs.append(cost)
             steps += 1
             damping *= max(1.0 / 3.0, 1.0 - (2.0 * gain - 1.0) ** 3)
             growth = 2.0
             if callback is not None:
                 callback(steps, z, cost, damping)
-            if reduction <= ftol * cost or small_step:
-                converged = True
-                break
+            stop = reduction <= ftol * cost or small_step
+            if stop or reused >= reuse or gain < _CHORD_GAIN:
+                refresh()
+                # A chord step's small reduction may be the old Jacobian's: stop only if
+                # the Jacobian at `z` predicts no more either.
+                if stop and (not stale or _step(factorization, damping, units, resolution)[1]
+                             <= ftol * cost):  # fmt: skip
+                    converged = True
+                    break
+            else:
+                factorization = _with_residuals(factorization, r, J, c, C, units)
+                fresh, reused = False, reused + 1
+        elif not fresh:
+            refresh()  # the old Jacobian, not the damping, is the likelier cause
         else:
             if small_step:
                 converged = True
                 break
             damping *= growth
             growth *= 2.0
-    return LevenbergMarquardtResult(z, r, J, c, C, costs, evaluations, trials, steps, converged)
+    if not fresh:
+        refresh()  # the result's Jacobian is the one at its `z`
+    return LevenbergMarquardtResult(
+        z, r, J, c, C, costs, evaluations, trials, chords, steps, converged
+    )

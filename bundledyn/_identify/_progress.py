@@ -18,8 +18,8 @@ class FitProgress:
     seconds; `True` always, `False` never.
     """
 
-    def __init__(self, show: bool | None, clock: FitClock, *, max_steps: int, stream=None):
-        self.show, self.clock, self.max_steps = show, clock, max_steps
+    def __init__(self, show: bool | None, clock: FitClock, *, stream=None):
+        self.show, self.clock = show, clock
         self.stream = sys.stderr if stream is None else stream
         self._terminal = bool(getattr(self.stream, "isatty", lambda: False)())
         self._shown = False
@@ -34,7 +34,7 @@ class FitProgress:
         if not self._wanted():
             return
         line = (
-            f"fit: stage {stage}/{stages}, step {step}/{self.max_steps}, cost {cost:.6e}, "
+            f"fit: stage {stage}/{stages}, step {step}, cost {cost:.6e}, "
             f"{self.clock.elapsed():.1f} s (compiling {self.clock.compile_seconds:.1f} s)"
         )
         end = "" if self._terminal else "\n"
